@@ -1,0 +1,115 @@
+"""The small abstract interfaces of the swappable parts (DESIGN.md, Interfaces).
+
+Each has a reference implementation in its package and a conformance check in
+`testbench.testing` that users run on their own classes.
+"""
+
+from __future__ import annotations
+
+import abc
+from dataclasses import dataclass
+from typing import Any, Mapping, Protocol
+
+import numpy as np
+
+from testbench.core.messages import CorrectionInfo, GuidanceStatus, NavEstimate, TruthState
+
+
+@dataclass(frozen=True, slots=True)
+class GeodeticOrigin:
+    """Scenario origin of the local NED frame (WGS-84 geodetic, alt above the ellipsoid)."""
+
+    lat_rad: float
+    lon_rad: float
+    alt_m: float
+
+
+class WorldView(Protocol):
+    """What a sensor may look at when it samples: truth of the world at this tick.
+
+    Only sensors and scoring get a WorldView; navigation and control never do.
+    """
+
+    t_s: float
+    origin: GeodeticOrigin
+    self_id: str
+    vehicles: Mapping[str, TruthState]
+
+    def terrain_height_m(self, north_m: np.ndarray, east_m: np.ndarray) -> np.ndarray:
+        """Terrain height above the origin's altitude (up positive, m) at NED north/east."""
+        ...
+
+
+class Dynamics(abc.ABC):
+    """Flight dynamics of one vehicle."""
+
+    @abc.abstractmethod
+    def reset(self, initial: Any) -> TruthState:
+        """Put the vehicle in its initial condition; returns the truth at t = 0."""
+
+    @abc.abstractmethod
+    def step(self, command: Any, dt_s: float) -> TruthState:
+        """Hold `command` for dt_s seconds of simulated time; returns the new truth."""
+
+
+class Sensor(abc.ABC):
+    """A sensor samples truth at `rate_hz`.
+
+    Noise state (bias walks, lags) evolves only inside `measure`, once per sample time;
+    asking again for the same t_s returns the cached measurement without walking twice.
+    """
+
+    rate_hz: float
+    name: str
+
+    @abc.abstractmethod
+    def measure(self, truth: TruthState, world: WorldView, rng: np.random.Generator) -> Any | None:
+        """The measurement at truth.t_s, or None when the sensor has nothing (no fix, out of view)."""
+
+
+class Navigator(abc.ABC):
+    """Turns one vehicle's measurements into its state estimate."""
+
+    @abc.abstractmethod
+    def initialize(self, t_s: float, initial: NavEstimate) -> None:
+        """Start from an initial estimate (e.g. the GNSS/ground alignment at take-off)."""
+
+    @abc.abstractmethod
+    def predict(self, imu: Any) -> None:
+        """Propagate with one IMU sample (or to its time, for IMU-less navigators)."""
+
+    @abc.abstractmethod
+    def correct(self, measurement: Any) -> CorrectionInfo | None:
+        """Use one aiding measurement; returns what was done, or None if not applicable."""
+
+    @abc.abstractmethod
+    def estimate(self) -> NavEstimate:
+        """The current estimate with covariance."""
+
+
+class Controller(abc.ABC):
+    """Guidance plus autopilot of one vehicle: estimate in, actuator command out."""
+
+    @abc.abstractmethod
+    def update(self, t_s: float, estimate: NavEstimate, reference: Any = None) -> Any:
+        """Command for the next control interval."""
+
+    def status(self) -> GuidanceStatus | None:
+        """What guidance is doing now (active path, commanded altitude), for scoring."""
+        return None
+
+
+class SceneMatcher(abc.ABC):
+    """Registers an orthorectified camera frame against a window of the reference map."""
+
+    @abc.abstractmethod
+    def match(self, ortho_frame: np.ndarray, map_window: np.ndarray, prior: Any) -> Any | None:
+        """A MatchResult (offset, quality, correspondences) or None when nothing matched."""
+
+
+class Detector(abc.ABC):
+    """Finds other vehicles in a camera image."""
+
+    @abc.abstractmethod
+    def detect(self, image: np.ndarray) -> list[Any]:
+        """Detections (pixel boxes with scores) in `image` (H, W, 3) uint8 RGB."""

@@ -1,0 +1,216 @@
+"""Frozen dataclasses passed between the pipeline stages (DESIGN.md: messages, not dicts).
+
+Frames and units are in every field name: `_ned_m` local NED metres at the scenario origin,
+`_b_` body FRD, `_rps` rad/s, `_mps` m/s, `_mps2` m/s^2, `q_nb_wxyz` body->nav quaternion
+(Hamilton, scalar first). Arrays are float64 numpy arrays of the stated shape; treat them as
+read-only (producers do not keep references they later mutate).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True, slots=True)
+class TruthState:
+    """True state of one vehicle at time t_s, as the dynamics computed it.
+
+    lat_rad, lon_rad, alt_m: WGS-84 geodetic position (alt above the ellipsoid, taken as MSL).
+    pos_ned_m (3,): position in local NED at the scenario origin.
+    vel_ned_mps (3,): velocity relative to the Earth, resolved in NED.
+    q_nb_wxyz (4,), rpy_rad (3,): attitude body(FRD)->NED; roll, pitch, yaw (Z-Y-X).
+    omega_eb_b_rps (3,): body rate relative to the Earth, body axes (what an autopilot damps).
+    omega_ib_b_rps (3,): body rate relative to inertial space, body axes (what a gyro senses).
+    f_b_mps2 (3,): specific force at the centre of gravity, body axes (what an accelerometer
+        senses; about (0, 0, -g) in level unaccelerated flight).
+    airspeed_mps: true airspeed; height_agl_m: height above the terrain below the vehicle.
+    pressure_pa, temperature_k: static atmosphere at the vehicle (for the barometer).
+    """
+
+    t_s: float
+    lat_rad: float
+    lon_rad: float
+    alt_m: float
+    pos_ned_m: np.ndarray
+    vel_ned_mps: np.ndarray
+    q_nb_wxyz: np.ndarray
+    rpy_rad: np.ndarray
+    omega_eb_b_rps: np.ndarray
+    omega_ib_b_rps: np.ndarray
+    f_b_mps2: np.ndarray
+    airspeed_mps: float
+    height_agl_m: float
+    pressure_pa: float
+    temperature_k: float
+
+
+@dataclass(frozen=True, slots=True)
+class ImuSample:
+    """One IMU output: angular rate and specific force in the IMU's body axes (FRD)."""
+
+    t_s: float
+    omega_ib_b_rps: np.ndarray
+    f_ib_b_mps2: np.ndarray
+
+
+@dataclass(frozen=True, slots=True)
+class MagSample:
+    """Magnetometer output: magnetic flux density in body axes (tesla), shape (3,)."""
+
+    t_s: float
+    field_b_T: np.ndarray
+
+
+@dataclass(frozen=True, slots=True)
+class BaroSample:
+    """Barometer output: static pressure (Pa) and the standard-atmosphere altitude it implies (m)."""
+
+    t_s: float
+    pressure_pa: float
+    altitude_m: float
+
+
+@dataclass(frozen=True, slots=True)
+class GnssFix:
+    """GNSS receiver output, valid at t_s (the time of validity, before latency).
+
+    pos_sigma_m / vel_sigma_mps: the receiver's own 1-sigma accuracy claim per axis (N, E, D).
+    A spoofed receiver reports its usual sigmas: it does not know it is lied to.
+    """
+
+    t_s: float
+    lat_rad: float
+    lon_rad: float
+    alt_m: float
+    vel_ned_mps: np.ndarray
+    pos_sigma_m: np.ndarray
+    vel_sigma_mps: np.ndarray
+
+
+@dataclass(frozen=True, slots=True)
+class UwbRange:
+    """One UWB two-way range from this vehicle's node to node `peer_id` (metres).
+
+    rss_dbm: received signal strength. The measurement carries no truth about NLOS.
+    """
+
+    t_s: float
+    peer_id: str
+    range_m: float
+    rss_dbm: float
+
+
+@dataclass(frozen=True, slots=True)
+class AirspeedSample:
+    """Pitot-static true airspeed (m/s)."""
+
+    t_s: float
+    airspeed_mps: float
+
+
+@dataclass(frozen=True, slots=True)
+class StateObservation:
+    """An ideal full-state observation (the `ideal_state` sensor), used by the truth
+    pass-through navigator for control studies without navigation error."""
+
+    t_s: float
+    truth: TruthState
+
+
+@dataclass(frozen=True, slots=True)
+class PositionFix:
+    """An absolute position fix (e.g. from scene matching) in local NED with its covariance.
+
+    cov_ned_m2 (3, 3); quality: matcher's own figure in [0, 1]; source names the producer.
+    """
+
+    t_s: float
+    pos_ned_m: np.ndarray
+    cov_ned_m2: np.ndarray
+    quality: float
+    source: str = "ismn"
+
+
+@dataclass(frozen=True, slots=True)
+class CorrectionInfo:
+    """What a navigator did with one measurement.
+
+    innovation (m,), innovation_cov (m, m), nis = y^T S^-1 y, accepted after gating.
+    """
+
+    t_s: float
+    kind: str
+    innovation: np.ndarray
+    innovation_cov: np.ndarray
+    nis: float
+    accepted: bool
+
+
+@dataclass(frozen=True, slots=True)
+class NavEstimate:
+    """A navigator's estimate of its own vehicle's state (the only state controllers see).
+
+    pos_ned_m, vel_ned_mps (3,); q_nb_wxyz (4,); rpy_rad (3,);
+    omega_b_rps (3,): bias-corrected body rate relative to the Earth (for rate damping);
+    cov_pos_ned_m2, cov_vel_ned_m2s2, cov_att_rad2 (3, 3): marginal covariances;
+    airspeed_mps: estimated true airspeed when the vehicle measures it, else None.
+    """
+
+    t_s: float
+    pos_ned_m: np.ndarray
+    vel_ned_mps: np.ndarray
+    q_nb_wxyz: np.ndarray
+    rpy_rad: np.ndarray
+    omega_b_rps: np.ndarray
+    cov_pos_ned_m2: np.ndarray
+    cov_vel_ned_m2s2: np.ndarray
+    cov_att_rad2: np.ndarray
+    airspeed_mps: float | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class SurfaceCommand:
+    """Fixed-wing actuator command: normalised surfaces in [-1, 1], throttle in [0, 1].
+
+    Sign conventions are JSBSim's: positive elevator is trailing edge down (nose down),
+    positive aileron rolls left, positive rudder yaws left.
+    """
+
+    aileron: float = 0.0
+    elevator: float = 0.0
+    rudder: float = 0.0
+    throttle: float = 0.0
+
+
+@dataclass(frozen=True, slots=True)
+class RotorCommand:
+    """Multirotor command: normalised motor commands in [0, 1], one per rotor (model order)."""
+
+    motors: tuple[float, ...] = ()
+
+
+@dataclass(frozen=True, slots=True)
+class GuidanceStatus:
+    """What guidance commands at one control tick, so that scoring can compare it with truth.
+
+    leg_index: active leg or waypoint index; on_leg: True on a straight leg (not turning).
+    alt_cmd_m: commanded altitude above the scenario origin (up positive, = -down_ned).
+    airspeed_cmd_mps: commanded true airspeed (nan for a multirotor).
+    line_start_ne_m, line_end_ne_m (2,): the straight path being followed (north, east), nan
+        while turning; target_ned_m (3,): the active waypoint or goal point (nan if none).
+    bank_cmd_rad: commanded bank angle; cross_track_est_m: cross-track error the controller
+        sees on its estimate (right of track positive).
+    """
+
+    t_s: float
+    leg_index: int = -1
+    on_leg: bool = False
+    alt_cmd_m: float = float("nan")
+    airspeed_cmd_mps: float = float("nan")
+    line_start_ne_m: tuple[float, float] = (float("nan"), float("nan"))
+    line_end_ne_m: tuple[float, float] = (float("nan"), float("nan"))
+    target_ned_m: tuple[float, float, float] = (float("nan"), float("nan"), float("nan"))
+    bank_cmd_rad: float = float("nan")
+    cross_track_est_m: float = float("nan")
