@@ -24,6 +24,26 @@ class GeodeticOrigin:
     alt_m: float
 
 
+@dataclass(frozen=True)
+class BuildContext:
+    """What a component learns about its place when the scenario is assembled.
+
+    vehicle_id: its own vehicle; vehicle_ids: every vehicle in the scenario, in scenario order
+    (UWB TDMA slots follow it); origin: the local NED origin; epoch_utc_year: decimal year of the
+    scenario date (magnetic model); physics_rate_hz; scenario_dir: folder of the scenario file
+    (relative paths resolve from it); world: the world object (maps, elevation) for sensors, None
+    for navigation and control, which never see the truth world.
+    """
+
+    vehicle_id: str
+    vehicle_ids: tuple[str, ...]
+    origin: GeodeticOrigin
+    epoch_utc_year: float = 2025.0
+    physics_rate_hz: float = 100.0
+    scenario_dir: str = "."
+    world: Any = None
+
+
 class WorldView(Protocol):
     """What a sensor may look at when it samples: truth of the world at this tick.
 
