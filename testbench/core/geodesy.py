@@ -13,6 +13,8 @@ have their 3 components on the last axis, shape (..., 3).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 A_M = 6378137.0
@@ -190,3 +192,31 @@ def transport_rate_ned_rps(lat_rad, h_m, vel_ned_mps):
     out[..., 1] = -v[..., 0] / (r_m + h)
     out[..., 2] = -v[..., 1] * np.tan(lat_rad) / (r_n + h)
     return out
+
+
+class LocalTangentFrame:
+    """A fixed local NED frame at a geodetic origin, with scalar fast paths.
+
+    The vectorised functions above are right for arrays; this class serves the per-tick,
+    one-point conversions of the engine without numpy overhead (same formulas).
+    """
+
+    def __init__(self, lat_rad: float, lon_rad: float, h_m: float):
+        self.lat_rad, self.lon_rad, self.h_m = float(lat_rad), float(lon_rad), float(h_m)
+        self._r0 = tuple(float(x) for x in geodetic_to_ecef(lat_rad, lon_rad, h_m))
+        c_ne = np.asarray(C_en(lat_rad, lon_rad)).T  # ECEF -> NED
+        self._c_ne = tuple(tuple(float(x) for x in row) for row in c_ne)
+
+    def geodetic_to_ned(self, lat_rad: float, lon_rad: float, h_m: float) -> tuple[float, float, float]:
+        """One geodetic point -> (north_m, east_m, down_m) in this frame."""
+        sl, cl = math.sin(lat_rad), math.cos(lat_rad)
+        r_n = A_M / math.sqrt(1.0 - E2 * sl * sl)
+        dx = (r_n + h_m) * cl * math.cos(lon_rad) - self._r0[0]
+        dy = (r_n + h_m) * cl * math.sin(lon_rad) - self._r0[1]
+        dz = (r_n * (1.0 - E2) + h_m) * sl - self._r0[2]
+        c = self._c_ne
+        return (
+            c[0][0] * dx + c[0][1] * dy + c[0][2] * dz,
+            c[1][0] * dx + c[1][1] * dy + c[1][2] * dz,
+            c[2][0] * dx + c[2][1] * dy + c[2][2] * dz,
+        )

@@ -1,0 +1,1 @@
+"""Flight dynamics: the JSBSim adapter, the aircraft catalogue, trim and linearisation."""

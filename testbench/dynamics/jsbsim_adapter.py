@@ -1,0 +1,293 @@
+"""JSBSim behind the `Dynamics` interface: SI `TruthState` in, feet/slugs/properties hidden.
+
+One `JSBSimDynamics` owns one FGFDMExec (one vehicle). The adapter:
+- loads the project's own models from `aircraft/` or any model bundled with jsbsim;
+- sets the initial condition from local NED position, heading and airspeed, and trims a
+  fixed-wing model for level flight (JSBSim's own trim);
+- maps `SurfaceCommand` / `RotorCommand` onto JSBSim's fcs/*-cmd-norm properties;
+- reads the truth back through cached property nodes (fast), converting to SI;
+- ends the run with `SimulationAborted` on ground/terrain contact, NaN or a runaway state.
+
+Terrain: JSBSim's own ground is the flat ellipsoid at the origin altitude; relief comes from the
+world's elevation model through `terrain_height_fn` (m above the origin altitude, up positive),
+which defines `height_agl_m` and terrain impact.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+from typing import Callable
+
+import os
+
+# Silence JSBSim's start-up banner on stdout (library code does not print).
+os.environ.setdefault("JSBSIM_DEBUG", "0")
+
+import jsbsim  # noqa: E402
+import numpy as np  # noqa: E402
+
+from testbench.core.errors import InputError, SimulationAborted
+from testbench.core.geodesy import LocalTangentFrame, ned_to_geodetic
+from testbench.core.interfaces import Dynamics, GeodeticOrigin
+from testbench.core.messages import RotorCommand, SurfaceCommand, TruthState
+from testbench.core.units import (
+    FT_TO_M,
+    KT_TO_MPS,
+    M_TO_FT,
+    MPS_TO_KT,
+    PSF_TO_PA,
+    RANKINE_TO_KELVIN,
+    STANDARD_GRAVITY_MPS2,
+)
+from testbench.dynamics.catalog import aircraft_dir, aircraft_meta
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class InitialCondition:
+    """Where and how a vehicle starts.
+
+    pos_ned_m (3,): local NED at the scenario origin (down = -altitude above the origin);
+    heading_rad: true heading; airspeed_mps: true airspeed along the heading (0 to hover);
+    trim: trim a fixed-wing model for level flight at that speed with JSBSim's trim.
+    """
+
+    pos_ned_m: tuple[float, float, float]
+    heading_rad: float = 0.0
+    airspeed_mps: float = 0.0
+    trim: bool = True
+
+
+# Property names read every time the truth is sampled, in TruthState order.
+_READ = (
+    "position/lat-geod-rad",
+    "position/long-gc-rad",
+    "position/geod-alt-ft",
+    "velocities/v-north-fps",
+    "velocities/v-east-fps",
+    "velocities/v-down-fps",
+    "attitude/phi-rad",
+    "attitude/theta-rad",
+    "attitude/psi-rad",
+    "velocities/p-rad_sec",
+    "velocities/q-rad_sec",
+    "velocities/r-rad_sec",
+    "velocities/pi-rad_sec",
+    "velocities/qi-rad_sec",
+    "velocities/ri-rad_sec",
+    "accelerations/Nx",
+    "accelerations/Ny",
+    "accelerations/Nz",
+    "velocities/vtrue-fps",
+    "atmosphere/P-psf",
+    "atmosphere/T-R",
+    "simulation/sim-time-sec",
+)
+
+_MAX_SPEED_MPS = 250.0
+_MAX_RATE_RPS = 30.0
+
+
+class JSBSimDynamics(Dynamics):
+    """One vehicle flown by JSBSim.
+
+    aircraft: model name (project `aircraft/` or jsbsim-bundled); origin: local NED origin;
+    physics_rate_hz: JSBSim integration rate; terrain_height_fn(north_m, east_m) -> m above the
+    origin altitude (None: flat ground at the origin altitude); allow_ground_contact: keep
+    running on the ground (take-off studies) instead of aborting.
+    """
+
+    def __init__(
+        self,
+        aircraft: str,
+        origin: GeodeticOrigin,
+        physics_rate_hz: float,
+        *,
+        terrain_height_fn: Callable[[float, float], float] | None = None,
+        allow_ground_contact: bool = False,
+        vehicle_id: str = "",
+    ):
+        self.aircraft = aircraft
+        self.origin = origin
+        self.vehicle_id = vehicle_id
+        self.aircraft_meta = aircraft_meta(aircraft)
+        self.kind = self.aircraft_meta.get("kind", "fixed_wing")
+        self._terrain = terrain_height_fn
+        self._allow_ground = allow_ground_contact
+        self._dt_s = 1.0 / float(physics_rate_hz)
+
+        self.fdm = jsbsim.FGFDMExec(None)  # root = the jsbsim package (engines, systems)
+        self.fdm.set_debug_level(0)
+        self.fdm.set_aircraft_path(str(aircraft_dir(aircraft)))
+        own_engines = aircraft_dir(aircraft) / aircraft / "Engines"
+        if own_engines.is_dir():
+            self.fdm.set_engine_path(str(own_engines))
+        if not self.fdm.load_model(aircraft):
+            raise InputError(f"aircraft {aircraft!r}: JSBSim could not load its model")
+        self.fdm.set_dt(self._dt_s)
+        pm = self.fdm.get_property_manager()
+        self._nodes = [pm.get_node(name, False) for name in _READ]
+        if any(n is None for n in self._nodes):
+            missing = [name for name, n in zip(_READ, self._nodes) if n is None]
+            raise InputError(f"aircraft {aircraft!r}: JSBSim model lacks properties {missing}")
+        self._n_motors = len(self.aircraft_meta.get("motors", ())) if self.kind == "multirotor" else 0
+        self._frame = LocalTangentFrame(origin.lat_rad, origin.lon_rad, origin.alt_m)
+        self._truth: TruthState | None = None
+
+    # -- Dynamics interface -------------------------------------------------------------
+
+    def reset(self, initial: InitialCondition) -> TruthState:
+        """Set the initial condition (and trim a fixed-wing model); returns the truth at t=0."""
+        o = self.origin
+        lat, lon, alt = ned_to_geodetic(np.asarray(initial.pos_ned_m, float), o.lat_rad, o.lon_rad, o.alt_m)
+        fdm = self.fdm
+        ground_m = o.alt_m + self._terrain_at(initial.pos_ned_m[0], initial.pos_ned_m[1])
+        fdm["ic/terrain-elevation-ft"] = o.alt_m * M_TO_FT  # JSBSim's own (flat) ground
+        fdm["ic/lat-geod-rad"] = float(lat)
+        fdm["ic/long-gc-rad"] = float(lon)
+        fdm["ic/h-sl-ft"] = float(alt) * M_TO_FT
+        fdm["ic/psi-true-rad"] = float(initial.heading_rad)
+        fdm["ic/vt-kts"] = float(initial.airspeed_mps) * MPS_TO_KT
+        fdm["ic/gamma-deg"] = 0.0
+        if not fdm.run_ic():
+            raise InputError(f"aircraft {self.aircraft!r}: JSBSim rejected the initial condition")
+        fdm["propulsion/set-running"] = -1
+        if self.kind == "multirotor":
+            hover = float(self.aircraft_meta.get("hover_throttle_norm", 0.5))
+            self._apply(RotorCommand(motors=(hover,) * self._n_motors))
+        elif initial.trim and initial.airspeed_mps > 0.0:
+            try:
+                fdm["simulation/do_simple_trim"] = 1  # full longitudinal trim in level flight
+            except jsbsim.TrimFailureError as exc:
+                log.warning("%s: JSBSim trim failed (%s); starting untrimmed", self.aircraft, exc)
+        if alt - ground_m < 0.0:
+            raise InputError(
+                f"vehicle {self.vehicle_id}: initial altitude {alt - o.alt_m:.1f} m is below the terrain "
+                f"({ground_m - o.alt_m:.1f} m above the origin)"
+            )
+        self._truth = self._read_truth()
+        return self._truth
+
+    def step(self, command: SurfaceCommand | RotorCommand, dt_s: float) -> TruthState:
+        """Hold `command` for dt_s (a whole number of physics steps); returns the new truth."""
+        self.advance(command, max(1, int(round(dt_s / self._dt_s))))
+        return self.truth()
+
+    # -- engine fast path ---------------------------------------------------------------
+
+    def advance(self, command: SurfaceCommand | RotorCommand | None, n_steps: int) -> None:
+        """Run n_steps physics steps holding `command` (None: keep the last one) without
+        building a TruthState; cheap checks every step, full checks in `truth()`."""
+        if command is not None:
+            self._apply(command)
+        run = self.fdm.run
+        alt_node = self._nodes[2]
+        for _ in range(n_steps):
+            if not run():
+                raise SimulationAborted("JSBSim stopped the simulation", t_s=self._sim_time(), vehicle_id=self.vehicle_id)
+        if not math.isfinite(alt_node.get_double_value()):
+            raise SimulationAborted("NaN in the flight dynamics state", t_s=self._sim_time(), vehicle_id=self.vehicle_id)
+        self._truth = None
+
+    def truth(self) -> TruthState:
+        """The truth at the current time (built once per time, then cached)."""
+        if self._truth is None:
+            self._truth = self._read_truth()
+        return self._truth
+
+    # -- internals ----------------------------------------------------------------------
+
+    def _terrain_at(self, north_m: float, east_m: float) -> float:
+        if self._terrain is None:
+            return 0.0
+        return float(self._terrain(north_m, east_m))
+
+    def _sim_time(self) -> float:
+        return self._nodes[-1].get_double_value()
+
+    def _apply(self, command: SurfaceCommand | RotorCommand) -> None:
+        fdm = self.fdm
+        if isinstance(command, SurfaceCommand):
+            fdm["fcs/aileron-cmd-norm"] = _clip(command.aileron, -1.0, 1.0)
+            fdm["fcs/elevator-cmd-norm"] = _clip(command.elevator, -1.0, 1.0)
+            fdm["fcs/rudder-cmd-norm"] = _clip(command.rudder, -1.0, 1.0)
+            fdm["fcs/throttle-cmd-norm"] = _clip(command.throttle, 0.0, 1.0)
+        elif isinstance(command, RotorCommand):
+            if len(command.motors) != self._n_motors:
+                raise InputError(
+                    f"vehicle {self.vehicle_id}: {len(command.motors)} motor commands for "
+                    f"{self._n_motors} motors of {self.aircraft}"
+                )
+            for i, u in enumerate(command.motors):
+                fdm[f"fcs/throttle-cmd-norm[{i}]"] = _clip(u, 0.0, 1.0)
+        else:
+            raise TypeError(f"unsupported command type {type(command).__name__}")
+
+    def _read_truth(self) -> TruthState:
+        v = [n.get_double_value() for n in self._nodes]
+        (lat, lon, alt_ft, vn, ve, vd, phi, theta, psi, p, q, r, pi, qi, ri, nx, ny, nz, vt, p_psf, t_r, t_s) = v
+        t_s = round(t_s, 9)
+        if not all(math.isfinite(x) for x in v):
+            raise SimulationAborted("NaN in the flight dynamics state", t_s=t_s, vehicle_id=self.vehicle_id)
+        alt = alt_ft * FT_TO_M
+        n_m, e_m, d_m = self._frame.geodetic_to_ned(lat, lon, alt)
+        vel = np.array([vn * FT_TO_M, ve * FT_TO_M, vd * FT_TO_M])
+        height_agl = -d_m - self._terrain_at(n_m, e_m)
+        omega_eb = np.array([p, q, r])
+        if not self._allow_ground and height_agl <= 0.0:
+            raise SimulationAborted(
+                f"ground contact (height above terrain {height_agl:.2f} m, vertical speed {vel[2]:.1f} m/s down)",
+                t_s=t_s,
+                vehicle_id=self.vehicle_id,
+            )
+        speed = math.sqrt(vn * vn + ve * ve + vd * vd) * FT_TO_M
+        rate = max(abs(p), abs(q), abs(r))
+        if speed > _MAX_SPEED_MPS or rate > _MAX_RATE_RPS:
+            raise SimulationAborted(
+                f"runaway state (speed {speed:.0f} m/s, body rate {rate:.1f} rad/s)",
+                t_s=t_s,
+                vehicle_id=self.vehicle_id,
+            )
+        # JSBSim's load factors: Nx, Ny along body x, y; Nz is positive UP (-z body), all in
+        # units of standard gravity; specific force in FRD = g0 * (Nx, Ny, -Nz).
+        g0 = STANDARD_GRAVITY_MPS2
+        f_b = np.array([g0 * nx, g0 * ny, -g0 * nz])
+        return TruthState(
+            t_s=t_s,
+            lat_rad=lat,
+            lon_rad=lon,
+            alt_m=alt,
+            pos_ned_m=np.array([n_m, e_m, d_m]),
+            vel_ned_mps=vel,
+            q_nb_wxyz=_euler_to_quat_scalar(phi, theta, psi),
+            rpy_rad=np.array([phi, theta, psi]),
+            omega_eb_b_rps=omega_eb,
+            omega_ib_b_rps=np.array([pi, qi, ri]),
+            f_b_mps2=f_b,
+            airspeed_mps=vt * FT_TO_M,
+            height_agl_m=height_agl,
+            pressure_pa=p_psf * PSF_TO_PA,
+            temperature_k=t_r * RANKINE_TO_KELVIN,
+        )
+
+
+def _euler_to_quat_scalar(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """Z-Y-X Euler -> q_nb (w, x, y, z), w >= 0; scalar twin of rotations.euler_to_quat."""
+    cr, sr = math.cos(0.5 * roll), math.sin(0.5 * roll)
+    cp, sp = math.cos(0.5 * pitch), math.sin(0.5 * pitch)
+    cy, sy = math.cos(0.5 * yaw), math.sin(0.5 * yaw)
+    w = cr * cp * cy + sr * sp * sy
+    q = (w, sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy)
+    return -np.array(q) if w < 0.0 else np.array(q)
+
+
+def _clip(x: float, lo: float, hi: float) -> float:
+    if not math.isfinite(x):
+        raise SimulationAborted(f"non-finite actuator command {x!r}")
+    return lo if x < lo else hi if x > hi else float(x)
+
+
+__all__ = ["InitialCondition", "JSBSimDynamics", "KT_TO_MPS"]
