@@ -1,0 +1,12 @@
+"""Sensor models: IMU, magnetometer, barometer, GNSS with denial, UWB, airspeed, the ideal
+state sensor, and cameras (camera/). Importing this package registers every sensor."""
+
+from testbench.sensors import (  # noqa: F401
+    airspeed,
+    barometer,
+    gnss,
+    ideal_state,
+    imu,
+    magnetometer,
+    uwb,
+)

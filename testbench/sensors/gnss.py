@@ -1,0 +1,118 @@
+"""GNSS receiver: position and velocity with noise, latency and rate, and the denial cases.
+
+Position error = white noise + a first-order Gauss-Markov part (multipath, atmosphere; time
+constant pos_corr_s); velocity error white. Per axis (N, E, D) sigmas.
+
+Denial windows (scenario time, start_s <= t < end_s):
+- jamming: no fix at all;
+- degraded: every sigma (true error and the receiver's claim) times sigma_scale;
+- spoofing: the fix is dragged by offset = offset_ned_m + drift_ned_mps (t - start_s) and
+  the velocity by drift_ned_mps; the receiver reports its usual sigmas (it does not know).
+Latency: a fix valid at t is delivered at the first sample tick at or after t + latency_s.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from typing import Annotated, Literal, Union
+
+import numpy as np
+from pydantic import Field
+
+from testbench.core.geodesy import ned_to_geodetic
+from testbench.core.interfaces import BuildContext, WorldView
+from testbench.core.messages import GnssFix, TruthState
+from testbench.core.registry import ParamsModel, register
+from testbench.sensors.base import CachedSensor, check_rate
+
+
+class Jamming(ParamsModel):
+    type: Literal["jamming"]
+    start_s: float
+    end_s: float = math.inf
+
+
+class Degraded(ParamsModel):
+    type: Literal["degraded"]
+    start_s: float
+    end_s: float = math.inf
+    sigma_scale: float = Field(5.0, gt=0)
+
+
+class Spoofing(ParamsModel):
+    type: Literal["spoofing"]
+    start_s: float
+    end_s: float = math.inf
+    drift_ned_mps: tuple[float, float, float] = (1.0, 0.0, 0.0)
+    offset_ned_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+DenialWindow = Annotated[Union[Jamming, Degraded, Spoofing], Field(discriminator="type")]
+
+
+class GnssParams(ParamsModel):
+    """Sigmas are 1-sigma per axis; defaults are of a single-frequency SPS receiver."""
+
+    rate_hz: float = Field(5.0, gt=0)
+    latency_s: float = Field(0.0, ge=0)
+    pos_sigma_ne_m: float = Field(1.5, ge=0)
+    pos_sigma_d_m: float = Field(3.0, ge=0)
+    pos_corr_sigma_m: float = Field(1.0, ge=0)
+    pos_corr_s: float = Field(60.0, gt=0)
+    vel_sigma_mps: float = Field(0.1, ge=0)
+    denial: list[DenialWindow] = []
+
+
+def _active(windows, t_s: float):
+    return [w for w in windows if w.start_s <= t_s < w.end_s]
+
+
+@register("sensor", "gnss")
+class Gnss(CachedSensor):
+    """Returns GnssFix, or None while jammed or before the first fix is due."""
+
+    Params = GnssParams
+
+    def __init__(self, params: GnssParams, *, ctx: BuildContext):
+        super().__init__()
+        self.params = params
+        self.name = "gnss"
+        self.rate_hz = check_rate(params.rate_hz, ctx, "gnss")
+        self.dt_s = 1.0 / self.rate_hz
+        self.origin = ctx.origin
+        self._corr: np.ndarray | None = None
+        self._queue: deque[GnssFix] = deque()
+
+    def _sample(self, truth: TruthState, world: WorldView, rng: np.random.Generator) -> GnssFix | None:
+        p = self.params
+        t = truth.t_s
+        z = rng.standard_normal(9)  # always drawn: the stream does not depend on the windows
+        a = math.exp(-self.dt_s / p.pos_corr_s)
+        if self._corr is None:
+            self._corr = p.pos_corr_sigma_m * z[:3]
+        else:
+            self._corr = a * self._corr + p.pos_corr_sigma_m * math.sqrt(1.0 - a * a) * z[:3]
+        active = _active(p.denial, t)
+        if not any(w.type == "jamming" for w in active):
+            scale = math.prod(w.sigma_scale for w in active if w.type == "degraded")
+            pos_sigma = np.array([p.pos_sigma_ne_m, p.pos_sigma_ne_m, p.pos_sigma_d_m])
+            err = scale * (pos_sigma * z[3:6] + self._corr)
+            vel_err = scale * p.vel_sigma_mps * z[6:9]
+            for w in active:
+                if w.type == "spoofing":
+                    drift = np.asarray(w.drift_ned_mps, float)
+                    err = err + np.asarray(w.offset_ned_m, float) + drift * (t - w.start_s)
+                    vel_err = vel_err + drift
+            lat, lon, alt = ned_to_geodetic(
+                np.asarray(truth.pos_ned_m, float) + err, self.origin.lat_rad, self.origin.lon_rad, self.origin.alt_m
+            )
+            claim = scale * np.sqrt(pos_sigma**2 + p.pos_corr_sigma_m**2)
+            self._queue.append(
+                GnssFix(t, float(lat), float(lon), float(alt), np.asarray(truth.vel_ned_mps, float) + vel_err,
+                        claim, np.full(3, scale * p.vel_sigma_mps))
+            )
+        out = None
+        while self._queue and self._queue[0].t_s + p.latency_s <= t + 1e-9:
+            out = self._queue.popleft()  # the newest fix that is due
+        return out
