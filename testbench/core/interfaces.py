@@ -107,6 +107,19 @@ class Navigator(abc.ABC):
         """The current estimate with covariance."""
 
 
+class NavigationAid(abc.ABC):
+    """Turns raw sensor output into navigator measurements with the help of the current
+    estimate (scene matching: camera frame + INS pose -> position fix)."""
+
+    @abc.abstractmethod
+    def accepts(self, measurement: Any) -> bool:
+        """True if this aid consumes `measurement` (e.g. frames of its own camera)."""
+
+    @abc.abstractmethod
+    def process(self, measurement: Any, estimate: NavEstimate) -> tuple[list[Any], Any]:
+        """(measurements for the navigator, diagnostics for the recorder or None)."""
+
+
 class Controller(abc.ABC):
     """Guidance plus autopilot of one vehicle: estimate in, actuator command out."""
 

@@ -28,6 +28,7 @@ _BUILTIN_PACKAGES: dict[str, tuple[str, ...]] = {
     "detector": ("testbench.navigation.relative",),
     "relative_estimator": ("testbench.navigation.relative",),
     "formation": ("testbench.control",),
+    "aid": ("testbench.navigation",),
 }
 
 

@@ -127,6 +127,7 @@ class JSBSimDynamics(Dynamics):
             self.fdm.set_engine_path(str(own_engines))
         if not self.fdm.load_model(aircraft):
             raise InputError(f"aircraft {aircraft!r}: JSBSim could not load its model")
+        self.fdm.disable_output()  # bundled models may declare CSV outputs: never write files
         self.fdm.set_dt(self._dt_s)
         pm = self.fdm.get_property_manager()
         self._nodes = [pm.get_node(name, False) for name in _READ]

@@ -1,0 +1,172 @@
+"""The scenario schema: typed, validated, unknown keys are errors.
+
+A scenario YAML maps onto `Scenario`. Components (sensors, navigation, control, mission) are
+`{type: NAME, params: {...}}` blocks (`ComponentSpec`); their params are validated against the
+named class's own `Params` model when the scenario is loaded (see loader.validate_components).
+Units are in key names: `_m`, `_s`, `_hz`, `_deg`, `_mps`.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pydantic
+from pydantic import Field, field_validator, model_validator
+
+_CFG = pydantic.ConfigDict(extra="forbid", frozen=True)
+
+
+class ComponentSpec(pydantic.BaseModel):
+    """A swappable part: registry name or "package.module:Class", and its params."""
+
+    model_config = _CFG
+    type: str
+    params: dict[str, Any] = Field(default_factory=dict)
+
+
+class SensorSpec(ComponentSpec):
+    """A sensor on a vehicle; `name` (default: the type) must be unique on the vehicle."""
+
+    name: str | None = None
+
+    @property
+    def sensor_name(self) -> str:
+        return self.name or self.type.rsplit(":", 1)[-1]
+
+
+class Origin(pydantic.BaseModel):
+    """Origin of the local NED frame: WGS-84 latitude/longitude (deg), altitude (m, ellipsoid
+    taken as MSL). The ground at the origin is at alt_m."""
+
+    model_config = _CFG
+    lat_deg: float = Field(ge=-89.0, le=89.0)
+    lon_deg: float = Field(ge=-180.0, le=180.0)
+    alt_m: float = 0.0
+
+
+class World(pydantic.BaseModel):
+    """The world: origin, what cameras render (imagery), what vehicles carry (reference_map),
+    terrain (elevation). Maps are GeoTIFF paths (with ${VAR} expansion) or `procedural:` specs;
+    None means no imagery / flat ground."""
+
+    model_config = _CFG
+    origin: Origin
+    imagery: str | None = None
+    reference_map: str | None = None
+    elevation: str | None = None
+    reference_elevation: str | None = None
+    obstacles: list[dict[str, Any]] = Field(default_factory=list)
+
+
+class InitialState(pydantic.BaseModel):
+    """Initial position (local metres or lat/lon), altitude above the origin's ground,
+    heading and airspeed. Exactly one of (north_m, east_m) and (lat_deg, lon_deg)."""
+
+    model_config = _CFG
+    north_m: float | None = None
+    east_m: float | None = None
+    lat_deg: float | None = None
+    lon_deg: float | None = None
+    altitude_m: float = Field(description="height above the origin altitude (m)")
+    heading_deg: float = 0.0
+    airspeed_mps: float = Field(default=0.0, ge=0.0)
+
+    @model_validator(mode="after")
+    def _one_position(self) -> "InitialState":
+        local = self.north_m is not None or self.east_m is not None
+        geo = self.lat_deg is not None or self.lon_deg is not None
+        if local == geo:
+            raise ValueError("give either north_m/east_m or lat_deg/lon_deg")
+        return self
+
+
+class Rates(pydantic.BaseModel):
+    """Rates of the vehicle's loops (Hz); each must divide the physics rate."""
+
+    model_config = _CFG
+    control_hz: float = Field(default=50.0, gt=0.0)
+
+
+class Vehicle(pydantic.BaseModel):
+    """One vehicle: its JSBSim model, start, mission, sensors, navigator and controller.
+
+    aids: navigation aids that turn raw sensor output into navigator measurements using the
+    current estimate (e.g. `ismn`: camera frame + INS -> position fix).
+    """
+
+    model_config = _CFG
+    id: str = Field(pattern=r"^[A-Za-z][A-Za-z0-9_-]*$")
+    aircraft: str
+    initial: InitialState
+    mission: ComponentSpec | None = None
+    sensors: list[SensorSpec] = Field(default_factory=list)
+    navigation: ComponentSpec = Field(default_factory=lambda: ComponentSpec(type="truth_passthrough"))
+    aids: list[ComponentSpec] = Field(default_factory=list)
+    control: ComponentSpec
+    rates: Rates = Field(default_factory=Rates)
+    colour_rgb: tuple[int, int, int] = (200, 200, 210)
+
+    @field_validator("sensors")
+    @classmethod
+    def _unique_sensor_names(cls, sensors: list[SensorSpec]) -> list[SensorSpec]:
+        seen: set[str] = set()
+        for s in sensors:
+            if s.sensor_name in seen:
+                raise ValueError(f"two sensors named {s.sensor_name!r}; give each a unique name")
+            seen.add(s.sensor_name)
+        return sensors
+
+
+class Threshold(pydantic.BaseModel):
+    """A regression gate on one metric: min and/or max."""
+
+    model_config = _CFG
+    min: float | None = None
+    max: float | None = None
+
+    @model_validator(mode="after")
+    def _some_bound(self) -> "Threshold":
+        if self.min is None and self.max is None:
+            raise ValueError("give min and/or max")
+        return self
+
+
+class Phases(pydantic.BaseModel):
+    """How scoring splits flight into smooth and turning phases (truth bank and turn rate)."""
+
+    model_config = _CFG
+    turn_bank_deg: float = 10.0
+    turn_rate_deg_s: float = 3.0
+
+
+class Scenario(pydantic.BaseModel):
+    """A whole scenario file."""
+
+    model_config = _CFG
+    name: str
+    description: str = ""
+    seed: int = Field(default=0, ge=0)
+    duration_s: float = Field(gt=0.0)
+    physics_rate_hz: float = Field(default=120.0, gt=0.0)
+    record_rate_hz: float = Field(default=10.0, gt=0.0)
+    epoch_year: float = Field(default=2025.5, ge=2025.0, le=2030.0, description="decimal year (magnetic model)")
+    world: World
+    vehicles: list[Vehicle] = Field(min_length=1)
+    formation: ComponentSpec | None = None
+    phases: Phases = Field(default_factory=Phases)
+    thresholds: dict[str, Threshold] = Field(default_factory=dict)
+
+    @field_validator("vehicles")
+    @classmethod
+    def _unique_ids(cls, vehicles: list[Vehicle]) -> list[Vehicle]:
+        ids = [v.id for v in vehicles]
+        dup = {i for i in ids if ids.count(i) > 1}
+        if dup:
+            raise ValueError(f"duplicate vehicle ids: {sorted(dup)}")
+        return vehicles
+
+    def vehicle(self, vehicle_id: str) -> Vehicle:
+        for v in self.vehicles:
+            if v.id == vehicle_id:
+                return v
+        raise KeyError(vehicle_id)

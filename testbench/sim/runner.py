@@ -1,0 +1,152 @@
+"""Run one scenario end to end: assemble, fly, record, score, gate, report.
+
+Output contract (DESIGN.md): DIR/metrics.json, telemetry.parquet, events/, trajectories/*.tum,
+scenario.yaml (the resolved scenario), run.json (how the run went), report.html.
+Exit status: 0 completed and thresholds held, 3 a threshold failed, 4 the simulation was
+aborted (crash, NaN, divergence: the record up to that point is kept and labelled aborted).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+import yaml
+
+from testbench.config.loader import LoadedScenario
+from testbench.core.errors import (
+    EXIT_OK,
+    EXIT_RUN_ABORTED,
+    EXIT_THRESHOLD_FAILED,
+    SimulationAborted,
+)
+from testbench.core.interfaces import GeodeticOrigin
+from testbench.core.rng import RngStreams
+from testbench.sim.engine import Engine, EngineResult
+from testbench.sim.recorder import Recorder
+from testbench.sim.vehicle import build_vehicle, decimation
+from testbench.sim.world_runtime import RunWorld
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class RunOutcome:
+    """What a run produced: exit status, status text, flat metrics and where it was written."""
+
+    exit_status: int
+    status: str
+    out_dir: Path
+    metrics: dict[str, Any] = field(default_factory=dict)
+    failed_thresholds: list[str] = field(default_factory=list)
+    abort_reason: str | None = None
+
+
+def origin_of(loaded: LoadedScenario) -> GeodeticOrigin:
+    o = loaded.scenario.world.origin
+    return GeodeticOrigin(np.radians(o.lat_deg), np.radians(o.lon_deg), o.alt_m)
+
+
+def build_engine(
+    loaded: LoadedScenario,
+    *,
+    seed: int | np.random.SeedSequence | None = None,
+    realtime: bool = False,
+    on_progress: Callable[[float], None] | None = None,
+    frame_sink: Callable[[str, str, Any], None] | None = None,
+) -> tuple[Engine, RunWorld, Recorder]:
+    """Assemble the world, the vehicles and the engine of a scenario (no I/O of outputs)."""
+    scn = loaded.scenario
+    streams = RngStreams(scn.seed if seed is None else seed)
+    world = RunWorld(scn.world, origin_of(loaded))
+    vehicles = [build_vehicle(scn, v, world, streams, str(loaded.directory)) for v in scn.vehicles]
+    record_every = decimation(scn.record_rate_hz, scn.physics_rate_hz, "record_rate_hz")
+    recorder = Recorder()
+    engine = Engine(
+        vehicles, world, scn.physics_rate_hz, scn.duration_s, record_every, recorder,
+        realtime=realtime, on_progress=on_progress, frame_sink=frame_sink,
+    )
+    return engine, world, recorder
+
+
+def run_scenario(
+    loaded: LoadedScenario,
+    out_dir: str | os.PathLike,
+    *,
+    seed: int | np.random.SeedSequence | None = None,
+    realtime: bool = False,
+    on_progress: Callable[[float], None] | None = None,
+    frame_sink: Callable[[str, str, Any], None] | None = None,
+    report: bool = True,
+    pdf: bool = False,
+) -> RunOutcome:
+    """Fly the scenario and write the output contract into out_dir."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    for stale in ("metrics.json", "run.json", "report.html", "report.pdf"):
+        (out / stale).unlink(missing_ok=True)  # never leave a previous run's verdict behind
+    engine, world, recorder = build_engine(loaded, seed=seed, realtime=realtime, on_progress=on_progress, frame_sink=frame_sink)
+    result = engine.run()
+    if result.aborted is not None and not isinstance(result.aborted, SimulationAborted):
+        raise result.aborted  # a bug or a user error surfaced mid-run: not a flight outcome
+    recorder.write(out)
+    (out / "scenario.yaml").write_text(yaml.safe_dump(loaded.data, sort_keys=False), encoding="utf-8")
+    run_info = _run_info(loaded, engine, world, result, seed)
+    (out / "run.json").write_text(json.dumps(run_info, indent=2, sort_keys=True) + "\n", encoding="utf-8")
+    return finish_run(out, run_info, report=report, pdf=pdf)
+
+
+def finish_run(out: Path, run_info: dict[str, Any], *, report: bool, pdf: bool) -> RunOutcome:
+    """Score the record, check thresholds, write metrics.json and the report."""
+    from testbench import scoring
+
+    result = scoring.score_run(out)
+    thresholds = run_info.get("thresholds", {})
+    verdict = scoring.check_thresholds(result.flatten(), thresholds)
+    scoring.write_metrics_json(out, result, verdict)
+    aborted = run_info["status"] != "completed"
+    if report:
+        from testbench import reporting
+
+        reporting.write_html_report(out, out / "report.html")
+        if pdf:
+            reporting.write_pdf_report(out, out / "report.pdf")
+    if aborted:
+        status, code = "aborted", EXIT_RUN_ABORTED
+    elif verdict.failed:
+        status, code = "threshold_failed", EXIT_THRESHOLD_FAILED
+    else:
+        status, code = "passed", EXIT_OK
+    return RunOutcome(
+        exit_status=code, status=status, out_dir=out, metrics=result.flatten(),
+        failed_thresholds=[f["key"] if isinstance(f, dict) else str(f) for f in verdict.failed],
+        abort_reason=run_info.get("abort_reason"),
+    )
+
+
+def _run_info(loaded: LoadedScenario, engine: Engine, world: RunWorld, result: EngineResult, seed) -> dict[str, Any]:
+    scn = loaded.scenario
+    wall = max(result.wall_time_s, 1e-9)
+    seed_repr: Any = scn.seed if seed is None else (seed if isinstance(seed, int) else {"entropy": seed.entropy, "spawn_key": list(seed.spawn_key)})
+    return {
+        "scenario_name": scn.name,
+        "scenario_file": str(loaded.path),
+        "seed": seed_repr,
+        "sim_time_s": result.sim_time_s,
+        "wall_time_s": result.wall_time_s,
+        "real_time_factor": result.sim_time_s / wall,
+        "max_realtime_lag_s": result.max_realtime_lag_s,
+        "status": "completed" if result.aborted is None else "aborted",
+        "abort_reason": None if result.aborted is None else str(result.aborted),
+        "vehicles": [{"id": v.id, "aircraft": v.spec.aircraft, "kind": v.kind} for v in engine.vehicles],
+        "phases": scn.phases.model_dump(),
+        "origin": scn.world.origin.model_dump(),
+        "same_raster": world.same_raster,
+        "world": scn.world.model_dump(exclude={"origin"}),
+        "thresholds": {k: v.model_dump(exclude_none=True) for k, v in scn.thresholds.items()},
+    }
