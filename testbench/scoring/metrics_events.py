@@ -1,0 +1,129 @@
+"""Metrics from the event tables: scene matching (ISMN), relative navigation, formation.
+
+Each returns None when the run did not record the table, so its keys are absent from
+metrics.json (a threshold on them then fails as "missing", never silently passes).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from testbench.scoring.metrics_nav import MIN_AGL_FOR_PCT_M
+from testbench.scoring.phases import event_turning
+from testbench.scoring.record_io import RunRecord, column
+from testbench.scoring.result import (
+    FormationMetrics,
+    IsmnMetrics,
+    IsmnPhase,
+    RelnavMetrics,
+    RelnavPair,
+)
+from testbench.scoring.stats import error_stats, rate
+
+
+def ismn_fix_errors(ismn: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
+    """(horizontal error (m), error as % of AGL) of each row's fix vs truth, shapes (n,).
+
+    NaN on rows without a fix.
+    """
+    fix = column(ismn, "fix", dtype=bool).astype(bool)
+    eh = np.hypot(
+        column(ismn, "fix_north_m") - column(ismn, "truth_north_m"),
+        column(ismn, "fix_east_m") - column(ismn, "truth_east_m"),
+    )
+    eh = np.where(fix, eh, np.nan)
+    agl = column(ismn, "truth_height_agl_m")
+    with np.errstate(divide="ignore", invalid="ignore"):
+        pct = np.where(agl > MIN_AGL_FOR_PCT_M, 100.0 * eh / agl, np.nan)
+    return eh, pct
+
+
+def _ismn_phase(eh: np.ndarray, pct: np.ndarray, mask: np.ndarray) -> IsmnPhase | None:
+    n = int(np.sum(mask & np.isfinite(eh)))
+    if n == 0:
+        return None
+    return IsmnPhase(
+        horizontal_error_m=error_stats(eh[mask], cep=True),
+        horizontal_error_pct_agl=error_stats(pct[mask]),
+        count=n,
+    )
+
+
+def compute_ismn(record: RunRecord) -> IsmnMetrics | None:
+    """IsmnMetrics from events/ismn.parquet; phase per fix from truth bank and turn rate."""
+    ismn = record.event("ismn")
+    if ismn is None:
+        return None
+    attempted = column(ismn, "attempted", dtype=bool).astype(bool) if "attempted" in ismn.columns else np.ones(len(ismn), bool)
+    fix = column(ismn, "fix", dtype=bool).astype(bool) & attempted
+    accepted = column(ismn, "accepted", dtype=bool).astype(bool) & fix
+    eh, pct = ismn_fix_errors(ismn)
+    turning = event_turning(record, ismn)
+    latency = np.where(attempted, column(ismn, "latency_ms"), np.nan)
+    n_att, n_fix, n_acc = int(attempted.sum()), int(fix.sum()), int(accepted.sum())
+    return IsmnMetrics(
+        attempts=n_att,
+        fixes=n_fix,
+        accepted=n_acc,
+        fix_rate=rate(n_fix, n_att),
+        accept_rate=rate(n_acc, n_fix),
+        latency_ms=error_stats(latency),
+        all=_ismn_phase(eh, pct, fix),
+        smooth=_ismn_phase(eh, pct, fix & ~turning),
+        turning=_ismn_phase(eh, pct, fix & turning),
+    )
+
+
+def relnav_errors_m(rel: pd.DataFrame) -> np.ndarray:
+    """3D |estimated - true relative position| (m) per row, shape (n,)."""
+    return np.sqrt(
+        sum((column(rel, f"est_{a}_m") - column(rel, f"truth_{a}_m")) ** 2 for a in ("north", "east", "down"))
+    )
+
+
+def pair_key(observer_id: str, peer_id: str) -> str:
+    """Key of one observer -> peer pair in relnav.pairs (no dots: keys are dotted paths)."""
+    return f"{observer_id}_to_{peer_id}".replace(".", "_")
+
+
+def _id_rate(rel: pd.DataFrame) -> float | None:
+    if "id_correct" not in rel.columns or len(rel) == 0:
+        return None
+    return float(np.mean(rel["id_correct"].to_numpy().astype(bool)))
+
+
+def compute_relnav(record: RunRecord) -> RelnavMetrics | None:
+    """RelnavMetrics from events/relnav.parquet, overall and per observer -> peer pair."""
+    rel = record.event("relnav")
+    if rel is None:
+        return None
+    err = relnav_errors_m(rel)
+    sigma = column(rel, "sigma_m")
+    ok_sig = np.isfinite(sigma) & np.isfinite(err)
+    within = float(np.mean(err[ok_sig] <= 3.0 * sigma[ok_sig])) if ok_sig.any() else None
+    pairs = {}
+    obs = rel["vehicle_id"].astype(str).to_numpy()
+    peer = rel["peer_id"].astype(str).to_numpy()
+    for a, b in sorted(set(zip(obs, peer))):
+        sel = (obs == a) & (peer == b)
+        pairs[pair_key(a, b)] = RelnavPair(error_m=error_stats(err[sel]), id_correct_rate=_id_rate(rel[sel]), count=int(sel.sum()))
+    return RelnavMetrics(
+        error_m=error_stats(err),
+        id_correct_rate=_id_rate(rel),
+        within_3sigma_rate=within,
+        count=int(len(rel)),
+        pairs=pairs,
+    )
+
+
+def compute_formation(record: RunRecord) -> FormationMetrics | None:
+    """FormationMetrics from events/formation.parquet (slot errors from TRUE positions)."""
+    frm = record.event("formation")
+    if frm is None:
+        return None
+    en, ee, ed = (column(frm, f"slot_error_{a}_m") for a in ("north", "east", "down"))
+    return FormationMetrics(
+        error_m=error_stats(np.sqrt(en * en + ee * ee + ed * ed)),
+        horizontal_error_m=error_stats(np.hypot(en, ee)),
+    )

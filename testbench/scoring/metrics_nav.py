@@ -1,0 +1,172 @@
+"""Navigation metrics: the estimate (nav_*) against truth (truth_*), local NED metres.
+
+Errors are e = nav - truth. NEES uses the covariance the navigator reported with each row:
+position P = [[sN^2, cNE, 0], [cNE, sE^2, 0], [0, 0, sD^2]] (the recorder keeps the
+north-east covariance, not the cross terms with down), velocity and attitude with diagonal
+sigmas. Rows whose covariance is missing or not positive definite are left out of NEES.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from testbench.core.rotations import wrap_pi
+from testbench.scoring.phases import telemetry_turning
+from testbench.scoring.record_io import RunRecord, column
+from testbench.scoring.result import NavMetrics, NavSubset, NisStats
+from testbench.scoring.stats import ChiSquareStats, chi_square_stats, error_stats
+
+MIN_AGL_FOR_PCT_M = 1.0  # below this the vehicle is on the ground: % of AGL is meaningless
+
+
+def position_errors_ned_m(tel: pd.DataFrame) -> np.ndarray:
+    """nav - truth position (m), shape (n, 3), NED."""
+    return np.stack(
+        [column(tel, f"nav_{a}_m") - column(tel, f"truth_{a}_m") for a in ("north", "east", "down")], axis=1
+    )
+
+
+def horizontal_error_m(tel: pd.DataFrame) -> np.ndarray:
+    """|nav - truth| in the north-east plane (m), shape (n,)."""
+    e = position_errors_ned_m(tel)
+    return np.hypot(e[:, 0], e[:, 1])
+
+
+def row_durations_s(tel: pd.DataFrame) -> np.ndarray:
+    """Time each row stands for (s): the step to the vehicle's next row (last: median step)."""
+    t = column(tel, "t_s")
+    ids = tel["vehicle_id"].to_numpy()
+    out = np.zeros(len(tel))
+    for vid in pd.unique(ids):
+        sel = np.flatnonzero(ids == vid)
+        tv = t[sel]
+        if tv.size < 2:
+            continue
+        dt = np.diff(tv)
+        out[sel[:-1]] = dt
+        out[sel[-1]] = float(np.median(dt))
+    return out
+
+
+def position_nees(tel: pd.DataFrame) -> np.ndarray:
+    """Position NEES per row (3 dof), NaN where the covariance is unusable, shape (n,)."""
+    e = position_errors_ned_m(tel)
+    sn2 = column(tel, "nav_sigma_north_m") ** 2
+    se2 = column(tel, "nav_sigma_east_m") ** 2
+    sd2 = column(tel, "nav_sigma_down_m") ** 2
+    cne = np.nan_to_num(column(tel, "nav_cov_ne_m2"), nan=0.0)
+    det = sn2 * se2 - cne * cne
+    ok = (det > 0) & (sn2 > 0) & (sd2 > 0) & np.isfinite(det) & np.isfinite(sd2)
+    det = np.where(ok, det, 1.0)
+    en, ee, ed = e[:, 0], e[:, 1], e[:, 2]
+    # e_h^T P_h^-1 e_h with the closed-form 2x2 inverse, plus the independent down term.
+    horiz = (se2 * en * en - 2.0 * cne * en * ee + sn2 * ee * ee) / det
+    nees = horiz + ed * ed / np.where(ok, sd2, 1.0)
+    return np.where(ok, nees, np.nan)
+
+
+def _diag_nees(err: np.ndarray, sig: np.ndarray) -> np.ndarray:
+    ok = np.all(np.isfinite(sig) & (sig > 0), axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        v = np.sum((err / sig) ** 2, axis=1)
+    return np.where(ok, v, np.nan)
+
+
+def velocity_nees(tel: pd.DataFrame) -> np.ndarray:
+    """Velocity NEES per row (3 dof, diagonal sigmas), shape (n,)."""
+    axes = ("vn", "ve", "vd")
+    err = np.stack([column(tel, f"nav_{a}_mps") - column(tel, f"truth_{a}_mps") for a in axes], axis=1)
+    sig = np.stack([column(tel, f"nav_sigma_{a}_mps") for a in axes], axis=1)
+    return _diag_nees(err, sig)
+
+
+def attitude_nees(tel: pd.DataFrame) -> np.ndarray:
+    """Attitude NEES per row (3 dof) on wrapped Euler-angle errors and Euler sigmas, shape (n,)."""
+    axes = ("roll", "pitch", "yaw")
+    err = np.stack([wrap_pi(column(tel, f"nav_{a}_rad") - column(tel, f"truth_{a}_rad")) for a in axes], axis=1)
+    sig = np.stack([column(tel, f"nav_sigma_{a}_rad") for a in axes], axis=1)
+    return _diag_nees(err, sig)
+
+
+def _subset(e3: np.ndarray, eh: np.ndarray, pct: np.ndarray, dur: np.ndarray, mask: np.ndarray) -> NavSubset | None:
+    if not mask.any():
+        return None
+    return NavSubset(
+        position_error_m=error_stats(np.linalg.norm(e3[mask], axis=1)),
+        horizontal_error_m=error_stats(eh[mask], cep=True),
+        horizontal_error_pct_agl=error_stats(pct[mask]),
+        duration_s=float(np.sum(dur[mask])),
+    )
+
+
+def denied_mask(record: RunRecord) -> np.ndarray:
+    """True on telemetry rows where GNSS was not available to the navigator, shape (n,).
+
+    From the gnss_available column; when it was not recorded, from run.json
+    gnss_denied_windows (vehicle id -> [[start_s, end_s], ...]).
+    """
+    tel = record.telemetry
+    if "gnss_available" in tel.columns:
+        return ~tel["gnss_available"].to_numpy().astype(bool)
+    mask = np.zeros(len(tel), dtype=bool)
+    t = column(tel, "t_s")
+    ids = tel["vehicle_id"].to_numpy()
+    for vid, windows in (record.run_info.get("gnss_denied_windows") or {}).items():
+        for start, end in windows:
+            mask |= (ids == str(vid)) & (t >= float(start)) & (t <= float(end))
+    return mask
+
+
+def compute_nis(record: RunRecord) -> dict[str, NisStats]:
+    """Correction kind -> NisStats from events/corrections.parquet (empty when absent)."""
+    cor = record.event("corrections")
+    if cor is None:
+        return {}
+    out = {}
+    kinds = cor["kind"].astype(str).to_numpy()
+    for kind in sorted(pd.unique(kinds)):
+        sub = cor[kinds == kind]
+        accepted = column(sub, "accepted", dtype=bool).astype(bool)
+        out[str(kind)] = NisStats(
+            count=int(len(sub)),
+            accept_rate=float(np.mean(accepted)),
+            chi2=chi_square_stats(column(sub, "nis"), column(sub, "dim")),
+        )
+    return out
+
+
+def compute_nav(record: RunRecord) -> NavMetrics | None:
+    """NavMetrics of the record's telemetry (all vehicles it holds); None without rows."""
+    tel = record.telemetry
+    if len(tel) == 0:
+        return None
+    e3 = position_errors_ned_m(tel)
+    # Rows where the navigator had no estimate yet (NaN) are dropped by error_stats; the 3D
+    # and horizontal samples are taken on the same rows so that they stay comparable.
+    valid = np.all(np.isfinite(e3), axis=1)
+    e3 = np.where(valid[:, None], e3, np.nan)
+    eh = np.hypot(e3[:, 0], e3[:, 1])
+    agl = column(tel, "truth_height_agl_m")
+    with np.errstate(divide="ignore", invalid="ignore"):
+        pct = np.where(agl > MIN_AGL_FOR_PCT_M, 100.0 * eh / agl, np.nan)
+    dur = row_durations_s(tel)
+    turning = telemetry_turning(record)
+
+    nees: dict[str, ChiSquareStats] = {}
+    for name, fn in (("position", position_nees), ("velocity", velocity_nees), ("attitude", attitude_nees)):
+        s = chi_square_stats(fn(tel), 3)
+        if s is not None:
+            nees[name] = s
+
+    return NavMetrics(
+        position_error_m=error_stats(np.linalg.norm(e3, axis=1)),
+        horizontal_error_m=error_stats(eh, cep=True),
+        vertical_error_m=error_stats(e3[:, 2]),
+        horizontal_error_pct_agl=error_stats(pct),
+        denied=_subset(e3, eh, pct, dur, denied_mask(record) & valid),
+        smooth=_subset(e3, eh, pct, dur, ~turning & valid),
+        turning=_subset(e3, eh, pct, dur, turning & valid),
+        nees=nees,
+        nis=compute_nis(record),
+    )

@@ -1,0 +1,256 @@
+"""Typed results of scoring: a tree of frozen dataclasses that reports and batches consume.
+
+`MetricsResult.to_dict()` gives the nested dict written to metrics.json (DESIGN.md output
+contract); `flatten()` turns any nested dict into dotted keys ("nav.horizontal_error_m.rms")
+for thresholds and Monte Carlo tables. Fields that are None (no data for them in the run)
+are left out of the dicts, so an absent capability leaves no key behind.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+from testbench.scoring.stats import ChiSquareStats, ErrorStats
+
+
+def _convert(value: Any) -> Any:
+    if hasattr(value, "to_dict"):
+        return value.to_dict()
+    if isinstance(value, Mapping):
+        return {str(k): _convert(v) for k, v in value.items() if v is not None}
+    return value
+
+
+def section_dict(obj: Any) -> dict[str, Any]:
+    """Nested dict of a result dataclass: None fields dropped, children converted."""
+    out: dict[str, Any] = {}
+    for f in dataclasses.fields(obj):
+        v = getattr(obj, f.name)
+        if v is None:
+            continue
+        v = _convert(v)
+        if isinstance(v, dict) and not v:
+            continue
+        out[f.name] = v
+    return out
+
+
+class _Section:
+    def to_dict(self) -> dict[str, Any]:
+        return section_dict(self)
+
+
+@dataclass(frozen=True)
+class ControlMetrics(_Section):
+    """Guidance/control tracking on truth.
+
+    altitude_error_m: |truth altitude - commanded altitude| (m), every row with a command;
+    cross_track_error_m: distance of the true position from the commanded leg line (m), rows
+    on a leg; airspeed_error_mps: |true airspeed - commanded| (m/s), rows on a leg;
+    bank_max_deg: largest |true roll| (deg).
+    """
+
+    altitude_error_m: ErrorStats | None = None
+    cross_track_error_m: ErrorStats | None = None
+    airspeed_error_mps: ErrorStats | None = None
+    bank_max_deg: float | None = None
+
+
+@dataclass(frozen=True)
+class NavSubset(_Section):
+    """Navigation error over a subset of time (GNSS-denied, smooth, turning).
+
+    duration_s: time covered by the subset (sum of record intervals of its rows, summed over
+    vehicles when the record holds several).
+    """
+
+    position_error_m: ErrorStats | None = None
+    horizontal_error_m: ErrorStats | None = None
+    horizontal_error_pct_agl: ErrorStats | None = None
+    duration_s: float | None = None
+
+
+@dataclass(frozen=True)
+class NisStats(_Section):
+    """NIS of one correction kind: chi-square consistency plus acceptance.
+
+    count: corrections attempted; accept_rate: fraction accepted by the filter's gate.
+    The chi-square figures (mean, mean_per_dof, frac_in_95, ...) are over all attempts.
+    """
+
+    count: int
+    accept_rate: float
+    chi2: ChiSquareStats | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"count": self.count, "accept_rate": self.accept_rate}
+        if self.chi2 is not None:
+            out.update(self.chi2.to_dict())
+            out["n"] = self.chi2.n
+        return out
+
+
+@dataclass(frozen=True)
+class NavMetrics(_Section):
+    """Navigation estimate vs truth.
+
+    position_error_m: 3D |nav - truth| (m); horizontal_error_m: north-east (m, with CEP);
+    vertical_error_m: |down error| (m); horizontal_error_pct_agl: horizontal error as a
+    percentage of the true height above ground (rows with AGL > 1 m);
+    denied / smooth / turning: the same over GNSS-denied rows and per flight phase;
+    nees: "position" (3 dof, with the recorded north-east covariance), "velocity" and
+    "attitude" (3 dof, diagonal sigmas) -> ChiSquareStats; nis: correction kind -> NisStats.
+    """
+
+    position_error_m: ErrorStats | None = None
+    horizontal_error_m: ErrorStats | None = None
+    vertical_error_m: ErrorStats | None = None
+    horizontal_error_pct_agl: ErrorStats | None = None
+    denied: NavSubset | None = None
+    smooth: NavSubset | None = None
+    turning: NavSubset | None = None
+    nees: Mapping[str, ChiSquareStats] = field(default_factory=dict)
+    nis: Mapping[str, NisStats] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class IsmnPhase(_Section):
+    """Scene-matching fix error (fix - truth) over the fixes of one phase."""
+
+    horizontal_error_m: ErrorStats | None = None
+    horizontal_error_pct_agl: ErrorStats | None = None
+    count: int = 0
+
+
+@dataclass(frozen=True)
+class IsmnMetrics(_Section):
+    """Inertial-aided scene matching.
+
+    fix_rate = fixes / attempts; accept_rate = fixes accepted by the filter / fixes;
+    latency_ms: per attempt; all / smooth / turning: error of the produced fixes.
+    """
+
+    attempts: int
+    fixes: int
+    accepted: int
+    fix_rate: float | None = None
+    accept_rate: float | None = None
+    latency_ms: ErrorStats | None = None
+    all: IsmnPhase | None = None
+    smooth: IsmnPhase | None = None
+    turning: IsmnPhase | None = None
+
+
+@dataclass(frozen=True)
+class RelnavPair(_Section):
+    """Relative-navigation error of one observer -> peer pair."""
+
+    error_m: ErrorStats | None = None
+    id_correct_rate: float | None = None
+    count: int = 0
+
+
+@dataclass(frozen=True)
+class RelnavMetrics(_Section):
+    """Relative navigation: |estimated - true relative position| (m), 3D.
+
+    id_correct_rate: fraction of estimates attributed to the right peer;
+    within_3sigma_rate: fraction with error <= 3 sigma_m (a calibration check);
+    pairs: "<observer>_to_<peer>" -> RelnavPair.
+    """
+
+    error_m: ErrorStats | None = None
+    id_correct_rate: float | None = None
+    within_3sigma_rate: float | None = None
+    count: int = 0
+    pairs: Mapping[str, RelnavPair] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class FormationMetrics(_Section):
+    """Formation keeping: |true position - assigned slot| (m), 3D and horizontal."""
+
+    error_m: ErrorStats | None = None
+    horizontal_error_m: ErrorStats | None = None
+
+
+@dataclass(frozen=True)
+class VehicleMetrics(_Section):
+    """Every per-vehicle section (the same figures as the top level, for one vehicle)."""
+
+    control: ControlMetrics | None = None
+    nav: NavMetrics | None = None
+    ismn: IsmnMetrics | None = None
+    relnav: RelnavMetrics | None = None
+    formation: FormationMetrics | None = None
+
+
+@dataclass(frozen=True)
+class MetricsResult(_Section):
+    """The scores of one run. Top-level sections are over all vehicles.
+
+    custom: metric name -> nested dict of floats from user metrics (written at the top level
+    under their own name).
+    """
+
+    real_time_factor: float | None = None
+    sim_time_s: float | None = None
+    wall_time_s: float | None = None
+    status: str | None = None
+    control: ControlMetrics | None = None
+    nav: NavMetrics | None = None
+    ismn: IsmnMetrics | None = None
+    relnav: RelnavMetrics | None = None
+    formation: FormationMetrics | None = None
+    vehicles: Mapping[str, VehicleMetrics] = field(default_factory=dict)
+    custom: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        out = section_dict(dataclasses.replace(self, custom={}))
+        for name, values in self.custom.items():
+            out[name] = _convert(values)
+        return out
+
+    def flat(self) -> dict[str, Any]:
+        """Dotted-key view of to_dict() (see flatten)."""
+        return flatten(self.to_dict())
+
+
+def flatten(nested: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    """{"a": {"b": 1}} -> {"a.b": 1}. Lists and scalars are leaves."""
+    out: dict[str, Any] = {}
+    for k, v in nested.items():
+        key = f"{prefix}{k}"
+        if isinstance(v, Mapping):
+            out.update(flatten(v, key + "."))
+        else:
+            out[key] = v
+    return out
+
+
+def unflatten(flat: Mapping[str, Any]) -> dict[str, Any]:
+    """Inverse of flatten: {"a.b": 1} -> {"a": {"b": 1}}."""
+    out: dict[str, Any] = {}
+    for key, v in flat.items():
+        node = out
+        parts = key.split(".")
+        for p in parts[:-1]:
+            node = node.setdefault(p, {})
+        node[parts[-1]] = v
+    return out
+
+
+def json_safe(value: Any) -> Any:
+    """Replace non-finite floats by None (strict JSON has no NaN) throughout a nested value."""
+    if isinstance(value, Mapping):
+        return {str(k): json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_safe(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if hasattr(value, "item") and callable(value.item):  # numpy scalar
+        return json_safe(value.item())
+    return value
