@@ -3,10 +3,11 @@
 Overlapping Allan deviation from allantools; from its log-log curve:
 - white noise N (ARW / VRW): the slope -1/2 line fitted where the curve falls with slope
   <= -0.4 at short tau, read at tau = 1 s;
-- rate random walk K: the slope +1/2 line fitted where the curve rises with slope >= +0.3 at
-  long tau, read at tau = 3 s (None when the record shows no such region);
+- rate random walk K: the slope +1/2 line K sqrt(tau / 3), read at tau = 3 s, from a relative
+  least-squares fit of N^2/tau + C + K^2 tau/3 to the Allan variance up to a fifth of the record
+  (None unless that line rises to twice the floor within the record);
 - bias instability B: the flat floor / 0.664, where the floor is the median, over the taus
-  between the white-noise crossover and a tenth of the record, of the Allan deviation with the
+  where white noise is under 3/4 of the variance and tau is at most a tenth of the record, of the Allan deviation with the
   fitted white and random-walk parts removed in variance (so the floor is not read off the
   shoulders of the neighbouring slopes). `floor_min` is also given: the curve's minimum / 0.664.
 All values in the record's SI units (rad/s or m/s^2 based).
@@ -58,23 +59,24 @@ def fit_allan(taus: np.ndarray, adev: np.ndarray, record_s: float) -> AllanFit:
     run = np.flatnonzero(slope > -0.45)
     end = max(run[0] if len(run) else len(taus), 2)
     white = 10 ** np.mean(la[:end] + 0.5 * lt[:end])
-    # Rate random walk: a rise at about +1/2 over at least 0.4 decade, read below a fifth of
-    # the record (beyond it the curve has too few averages to show a slope).
+    # Rate random walk: least squares of AVAR = c0/tau + c1 + c2 tau (relative weights) over
+    # tau <= a fifth of the record; the +1/2 line K sqrt(tau/3) is kept only when it rises
+    # to twice the floor within that span (otherwise the record shows no rate random walk).
     k = None
-    usable = np.flatnonzero(taus <= record_s / 5.0)
-    if len(usable) >= 3:
-        last = usable[-1]
-        start = last
-        while start > 0 and slope[start - 1] >= 0.3:
-            start -= 1
-        if slope[last] >= 0.3 and lt[last] - lt[start] >= 0.4:
-            sl = slice(start, last + 1)
-            k = float(10 ** np.mean(la[sl] - 0.5 * (lt[sl] - np.log10(3.0))))
+    use = taus <= record_s / 5.0
+    if use.sum() >= 5:
+        t_u, v_u = taus[use], adev[use] ** 2
+        design = np.column_stack([1.0 / t_u, np.ones_like(t_u), t_u]) / v_u[:, None]
+        c0, c1, c2 = np.linalg.lstsq(design, np.ones_like(t_u), rcond=None)[0]
+        if c2 > 0 and c2 * t_u[-1] > 2.0 * max(c1, 0.0):
+            k = float(np.sqrt(3.0 * c2))
     b_min = float(adev.min() / FLICKER_FLOOR)
     var = adev**2 - white**2 / taus - ((k or 0.0) ** 2) * taus / 3.0
-    sel = (white / np.sqrt(taus) < adev.min()) & (taus <= record_s / 10.0) & (var > 0)
+    # Floor region: white noise below 3/4 of the variance (its fitted part is removed anyway)
+    # and tau at most a tenth of the record (enough averages for a stable reading).
+    sel = (white**2 / taus < 0.75 * adev**2) & (taus <= record_s / 10.0) & (var > 0)
     if k is not None:
-        sel &= k * np.sqrt(taus / 3.0) < adev.min()
+        sel &= k**2 * taus / 3.0 < 0.75 * adev**2
     b = float(np.sqrt(np.median(var[sel])) / FLICKER_FLOOR) if sel.any() else b_min
     return AllanFit(float(white), b, b_min, k, taus, adev)
 

@@ -1,0 +1,211 @@
+"""Flat-ground rendering: the exact plane homography, mip-mapped warps, clip planes and sky.
+
+Geometry. A pixel p = [u, v, 1] of an ideal pinhole camera has the ray d = M p in NED with
+M = R_nc K^-1 (camera->NED times the inverse intrinsics), scaled so that its camera depth is 1.
+It meets the plane down = D at d * t with t = h / w, w = m3 . p (m3 the down row of M,
+h = D - C_down the height of the optical centre above the plane), and t is the camera depth z_c.
+So [east, north, 1] ~ [C_e m3 + h m2; C_n m3 + h m1; m3] p: a homography. Ground is the strip
+h / far < w < h / near (clip planes on z_c are lines parallel to the horizon w = 0).
+
+Filtering. The map-pixels-per-image-pixel scale (largest singular value of the homography's
+Jacobian) is evaluated at tile corners; each tile is warped from the pyramid level nearest to
+log2(scale), and neighbouring tiles of the same level are merged into rectangles, so a nadir
+frame is one warp call.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from testbench.core.camera_geometry import PinholeCamera
+from testbench.sensors.camera.pyramid import RasterPyramid
+from testbench.sensors.camera.sky import COARSE_PX, apply_sky_and_haze, coarse_axes, haze_alpha
+
+TILE_PX = 64
+_SKY, _NEAR = -1, -2
+
+
+@dataclass(frozen=True)
+class PlaneView:
+    """Homographies of one camera pose over one ground plane.
+
+    H_ne (3, 3): [east, north, 1] ~ H_ne @ [u, v, 1]; H_map: the same onto level-0 map pixels
+    (col, row); w_coef (3,): w = w_coef . [u, v, 1]; h_m: height above the plane (m);
+    w_far, w_near: ground is w_far < w < w_near.
+    """
+
+    H_ne: np.ndarray
+    H_map: np.ndarray
+    w_coef: np.ndarray
+    h_m: float
+    w_far: float
+    w_near: float
+
+
+def plane_view(camera: PinholeCamera, centre_ned_m, R_nc, ground_down_m: float,
+               map_from_ne: np.ndarray, near_m: float, far_m: float) -> PlaneView:
+    """The homographies for an ideal camera at `centre_ned_m` with attitude R_nc (cam->NED)."""
+    C = np.asarray(centre_ned_m, float)
+    M = np.asarray(R_nc, float) @ np.linalg.inv(camera.K)
+    h = float(ground_down_m - C[2])
+    H_ne = np.vstack([C[1] * M[2] + h * M[1], C[0] * M[2] + h * M[0], M[2]])
+    H_map = map_from_ne @ H_ne
+    if h > 0:
+        w_far, w_near = h / far_m, h / max(near_m, 1e-9)
+    else:  # at or below the plane: no ground in view
+        w_far, w_near = np.inf, np.inf
+    return PlaneView(H_ne, H_map, M[2].copy(), h, w_far, w_near)
+
+
+def map_scale(H: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Largest singular value of d(col, row)/d(u, v) of the homography H at pixels (u, v)."""
+    w = H[2, 0] * u + H[2, 1] * v + H[2, 2]
+    x = (H[0, 0] * u + H[0, 1] * v + H[0, 2]) / w
+    y = (H[1, 0] * u + H[1, 1] * v + H[1, 2]) / w
+    a = (H[0, 0] - x * H[2, 0]) / w
+    b = (H[0, 1] - x * H[2, 1]) / w
+    c = (H[1, 0] - y * H[2, 0]) / w
+    d = (H[1, 1] - y * H[2, 1]) / w
+    fro = a * a + b * b + c * c + d * d
+    det = a * d - b * c
+    return np.sqrt(0.5 * (fro + np.sqrt(np.maximum(fro * fro - 4.0 * det * det, 0.0))))
+
+
+def tile_levels(view: PlaneView, width: int, height: int, max_level: int, lod_bias: float):
+    """Pyramid level per TILE_PX tile (ny, nx): >= 0, or _SKY / _NEAR for tiles without ground."""
+    xs = np.minimum(np.arange(0, width + TILE_PX, TILE_PX), width).astype(float)
+    ys = np.minimum(np.arange(0, height + TILE_PX, TILE_PX), height).astype(float)
+    xs, ys = np.unique(xs), np.unique(ys)
+    U, V = np.meshgrid(xs - 0.5, ys - 0.5)
+    wc = view.w_coef
+    W = wc[0] * U + wc[1] * V + wc[2]
+    # Corners beyond the far plane: evaluate the scale where the tile meets the far line.
+    w_lim = max(view.w_far, 1e-7 * max(abs(wc[2]), 1e-12)) * (1.0 + 1e-6)
+    g2 = wc[0] ** 2 + wc[1] ** 2
+    if g2 > 0:
+        shift = np.where(W < w_lim, (w_lim - W) / g2, 0.0)
+        Us, Vs = U + shift * wc[0], V + shift * wc[1]
+    else:
+        Us, Vs = U, V
+    with np.errstate(all="ignore"):
+        s = map_scale(view.H_map, Us, Vs)
+        lod = np.log2(np.maximum(s, 1e-12)) + lod_bias
+    lod = np.where(np.isfinite(lod), lod, max_level)
+    lvl = np.clip(np.floor(lod + 0.5), 0, max_level).astype(int)
+    lvl_t = np.maximum.reduce([lvl[:-1, :-1], lvl[1:, :-1], lvl[:-1, 1:], lvl[1:, 1:]])
+    corners = np.stack([W[:-1, :-1], W[1:, :-1], W[:-1, 1:], W[1:, 1:]])
+    lvl_t = np.where((corners <= view.w_far).all(axis=0), _SKY, lvl_t)
+    lvl_t = np.where((corners >= view.w_near).all(axis=0), _NEAR, lvl_t)
+    return lvl_t, xs.astype(int), ys.astype(int)
+
+
+def merge_tiles(levels: np.ndarray, xs: np.ndarray, ys: np.ndarray) -> list[tuple[int, int, int, int, int]]:
+    """Rectangles (x0, y0, x1, y1, level) covering the tiles with ground: horizontal runs of
+    one level, merged downwards while the run repeats."""
+    rects: list[list[int]] = []
+    open_runs: dict[tuple[int, int, int], list[int]] = {}
+    for j in range(levels.shape[0]):
+        runs = []
+        i = 0
+        row = levels[j]
+        while i < len(row):
+            k = i
+            while k + 1 < len(row) and row[k + 1] == row[i]:
+                k += 1
+            if row[i] >= 0:
+                runs.append((int(xs[i]), int(xs[k + 1]), int(row[i])))
+            i = k + 1
+        new_open = {}
+        for run in runs:
+            r = open_runs.get(run)
+            if r is not None:
+                r[3] = int(ys[j + 1])
+            else:
+                r = [run[0], int(ys[j]), run[1], int(ys[j + 1]), run[2]]
+                rects.append(r)
+            new_open[run] = r
+        open_runs = new_open
+    return [tuple(r) for r in rects]
+
+
+def warp_ground(pyr: RasterPyramid, H_map: np.ndarray, width: int, height: int,
+                rects) -> np.ndarray:
+    """(height, width, 4) RGBA warped from the pyramid, rectangle by rectangle."""
+    def warp(x0, y0, x1, y1, L):
+        s = 0.5**L
+        Hr = np.diag([s, s, 1.0]) @ H_map @ np.array([[1.0, 0, x0], [0, 1.0, y0], [0, 0, 1.0]])
+        return cv2.warpPerspective(pyr.levels[L], Hr, (x1 - x0, y1 - y0),
+                                   flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+                                   borderMode=cv2.BORDER_CONSTANT, borderValue=(0, 0, 0, 0))
+
+    if len(rects) == 1 and rects[0][:4] == (0, 0, width, height):
+        return warp(*rects[0])
+    out = np.zeros((height, width, 4), np.uint8)
+    for x0, y0, x1, y1, L in rects:
+        out[y0:y1, x0:x1] = warp(x0, y0, x1, y1, L)
+    return out
+
+
+def ground_sky_masks(view: PlaneView, width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
+    """(ground, sky) (H, W) bool masks from the clip lines; exact per pixel, evaluated only in
+    the bands of rows that a line crosses."""
+    wc = view.w_coef
+    ground = np.ones((height, width), bool)
+    sky = np.zeros((height, width), bool)
+    u = np.arange(width, dtype=np.float64)
+    for y0 in range(0, height, TILE_PX):
+        y1 = min(y0 + TILE_PX, height)
+        cw = [wc[0] * uu + wc[1] * vv + wc[2] for uu in (0.0, width - 1.0) for vv in (y0, y1 - 1.0)]
+        lo, hi = min(cw), max(cw)
+        if lo > view.w_far and hi < view.w_near:
+            continue
+        if hi <= view.w_far:
+            ground[y0:y1] = False
+            sky[y0:y1] = True
+            continue
+        v = np.arange(y0, y1, dtype=np.float64)
+        w = wc[0] * u[None, :] + (wc[1] * v + wc[2])[:, None]
+        sky[y0:y1] = w <= view.w_far
+        ground[y0:y1] = (w > view.w_far) & (w < view.w_near)
+    return ground, sky
+
+
+def render_plane(camera: PinholeCamera, centre_ned_m, R_nc, pyr: RasterPyramid,
+                 ground_down_m: float, opts) -> tuple[np.ndarray, np.ndarray, np.ndarray, PlaneView]:
+    """Render an ideal (undistorted) pinhole frame over flat ground.
+
+    Returns rgb (H, W, 3) uint8, valid (H, W) bool (ground with map data), sky (H, W) bool and
+    the PlaneView used.
+    """
+    W, H = camera.width_px, camera.height_px
+    view = plane_view(camera, centre_ned_m, R_nc, ground_down_m, pyr.map_from_ne, opts.near_m, opts.far_m)
+    levels, xs, ys = tile_levels(view, W, H, pyr.max_level, opts.lod_bias)
+    rects = merge_tiles(levels, xs, ys)
+    rgba = warp_ground(pyr, view.H_map, W, H, rects) if rects else np.zeros((H, W, 4), np.uint8)
+    rgb = cv2.cvtColor(rgba, cv2.COLOR_RGBA2RGB)
+    has_data = cv2.extractChannel(rgba, 3) >= 128
+    ground, sky = ground_sky_masks(view, W, H)
+    valid = has_data & ground
+    # Sky colour and haze on a coarse grid.
+    need_haze = opts.haze_visibility_m is not None
+    if sky.any() or need_haze:
+        cu, cv_ = coarse_axes(W, H, COARSE_PX)
+        U, V = np.meshgrid(cu, cv_)
+        P = np.stack([U, V, np.ones_like(U)], axis=-1)
+        M = np.asarray(R_nc, float) @ np.linalg.inv(camera.K)
+        d = P @ M.T
+        norm = np.linalg.norm(d, axis=-1)
+        elev = np.arcsin(np.clip(-d[..., 2] / norm, -1.0, 1.0))
+        alpha = None
+        if need_haze and view.h_m > 0:
+            with np.errstate(all="ignore"):
+                rng_m = np.where(d[..., 2] > view.w_far, view.h_m / d[..., 2] * norm, opts.far_m * 10)
+            alpha = haze_alpha(np.minimum(rng_m, 1e9), opts.haze_visibility_m)
+        rgb = apply_sky_and_haze(rgb, sky, ground, elev.astype(np.float32), alpha, COARSE_PX, opts)
+    offmap = ground & ~has_data
+    if offmap.any():
+        rgb[offmap] = 0
+    return rgb, valid, sky, view
