@@ -1,0 +1,5 @@
+"""Guidance and autopilots: missions (waypoints, racetrack, orbit), L1 path following, the
+fixed-wing autopilot (LQI longitudinal, roll/yaw loops) and the multirotor cascade with its
+motor mixer. Importing this package registers the controllers and missions."""
+
+from testbench.control import fixed_wing, missions  # noqa: F401  (registration)

@@ -1,0 +1,165 @@
+"""Fixed-wing autopilot: L1 lateral guidance, LQI altitude/airspeed hold, roll loop with rate
+damping and a turn-coordinating yaw damper.
+
+Structure (all loops run at the controller's rate on the NavEstimate only)
+- Guidance: `PathFollower` (guidance.py) on the mission's path gives the bank command,
+  limited to max_bank.
+- Longitudinal: linear-quadratic regulator with integral action (LQI) on the states
+  x = (V, gamma, q, theta, h) of the longitudinal linear model and the integrals of the
+  airspeed and altitude errors; inputs (elevator, throttle). All five states are measurable
+  from a navigation solution (gamma = asin(-v_D / |v|), V = estimated airspeed or ground
+  speed). The altitude reference h_r moves towards the commanded altitude at most at
+  max_climb_rate (gamma_r = dh_r/dt / V), so large altitude changes do not saturate the loop.
+  In a banked turn the references add the coordinated-turn pitch rate
+  q_r = g sin(phi) tan(phi) / V.
+- Roll: aileron = trim + k_phi (phi_c - phi) - k_p p + k_i int(phi_c - phi).
+- Yaw: rudder = trim - k_r (r - r_c), r_c = g sin(phi) cos(theta) / V (coordinated turn).
+Gains: gains.py / design.py (pole placement and LQR on the linear models).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pydantic
+
+from testbench.control.gains import FixedWingGains, default_gains
+from testbench.control.guidance import PathFollower
+from testbench.control.paths import LineSegment
+from testbench.core.interfaces import BuildContext, Controller
+from testbench.core.messages import GuidanceStatus, NavEstimate, SurfaceCommand
+from testbench.core.registry import ParamsModel, register
+from testbench.core.units import DEG_TO_RAD, STANDARD_GRAVITY_MPS2
+
+G = STANDARD_GRAVITY_MPS2
+
+
+def _clip(x: float, lo: float, hi: float) -> float:
+    return lo if x < lo else hi if x > hi else x
+
+
+@register("controller", "fixed_wing")
+class FixedWingController(Controller):
+    """Guidance and autopilot of a fixed-wing aircraft (see the module docstring).
+
+    Params: max_bank_deg (default: the sidecar's max_bank_deg, else 30); airspeed_mps (default:
+    the mission's, else the sidecar's cruise_airspeed_mps); l1_period_s, l1_damping (L1 law);
+    max_climb_rate_mps; altitude_error_clip_m (altitude error fed to the LQI is clipped to this);
+    gains_aircraft: name of a stored gain set (default: the vehicle's aircraft name; designed at
+    start-up from the linear model when none is stored).
+    """
+
+    class Params(ParamsModel):
+        max_bank_deg: float | None = pydantic.Field(default=None, gt=0.0, lt=80.0)
+        airspeed_mps: float | None = pydantic.Field(default=None, gt=0.0)
+        l1_period_s: float = pydantic.Field(default=12.0, gt=0.0)
+        l1_damping: float = pydantic.Field(default=0.75, gt=0.0)
+        max_climb_rate_mps: float = pydantic.Field(default=3.0, gt=0.0)
+        altitude_error_clip_m: float = pydantic.Field(default=15.0, gt=0.0)
+        gains_aircraft: str | None = None
+
+    def __init__(self, params: "FixedWingController.Params", *, ctx: BuildContext, mission, aircraft: dict, **_: object):
+        self.params = params
+        self.mission = mission
+        self.meta = dict(aircraft or {})
+        name = params.gains_aircraft or self.meta.get("name", "")
+        gains = default_gains(name)
+        if gains is None:
+            from testbench.control.design import design_fixed_wing  # needs JSBSim: only when no stored set
+
+            gains = design_fixed_wing(name).gains
+        self.gains: FixedWingGains = gains
+        max_bank_deg = params.max_bank_deg or float(self.meta.get("max_bank_deg", 30.0))
+        self.max_bank_rad = max_bank_deg * DEG_TO_RAD
+        self.airspeed_cmd_mps = float(
+            params.airspeed_mps or getattr(mission, "airspeed_mps", None) or self.meta.get("cruise_airspeed_mps", gains.trim_airspeed_mps)
+        )
+        self.segments = mission.path(self.airspeed_cmd_mps)
+        self.follower = PathFollower(
+            self.segments, bool(getattr(mission, "closed", True)), period_s=params.l1_period_s,
+            damping=params.l1_damping, max_bank_rad=self.max_bank_rad,
+        )
+        self._k_lon = gains.k_lon_array
+        self._t_prev: float | None = None
+        self._h_ref: float | None = None
+        self._int_v = 0.0
+        self._int_h = 0.0
+        self._int_phi = 0.0
+        self._status = GuidanceStatus(t_s=0.0)
+
+    # -- helpers ---------------------------------------------------------------------------
+
+    def _alt_cmd(self, seg_index: int) -> float:
+        seg_alt = getattr(self.mission, "segment_altitude_m", None)
+        return float(seg_alt(seg_index)) if seg_alt is not None and len(self.mission.waypoints_ned_m) else float(self.mission.altitude_m)
+
+    def update(self, t_s: float, estimate: NavEstimate, reference=None) -> SurfaceCommand:
+        """Surface/throttle command from the estimate (reference unused)."""
+        g = self.gains
+        dt = 0.0 if self._t_prev is None else max(0.0, t_s - self._t_prev)
+        self._t_prev = t_s
+        pos, vel = estimate.pos_ned_m, estimate.vel_ned_mps
+        phi, theta, _ = (float(a) for a in estimate.rpy_rad)
+        p, q, r = (float(w) for w in estimate.omega_b_rps)
+        ground_speed = float(np.linalg.norm(vel))
+        v_air = float(estimate.airspeed_mps) if estimate.airspeed_mps is not None else ground_speed
+        v_for_rates = max(v_air, 5.0)
+        gamma = math.asin(_clip(-float(vel[2]) / max(ground_speed, 1e-3), -1.0, 1.0))
+        h = -float(pos[2])
+
+        # Lateral guidance.
+        out = self.follower.update(pos[:2], vel[:2])
+        phi_c = out.bank_cmd_rad
+
+        # Altitude reference: rate-limited towards the command.
+        h_cmd = self._alt_cmd(out.segment_index)
+        if self._h_ref is None:
+            self._h_ref = h
+        step = self.params.max_climb_rate_mps * dt
+        dh = _clip(h_cmd - self._h_ref, -step, step)
+        self._h_ref += dh
+        gamma_r = math.asin(_clip(dh / dt / v_for_rates, -0.5, 0.5)) if dt > 0 else 0.0
+
+        # Longitudinal LQI.
+        q_r = G * math.sin(phi) * math.tan(_clip(phi, -1.2, 1.2)) / v_for_rates
+        e_v = v_air - self.airspeed_cmd_mps
+        e_h = _clip(h - self._h_ref, -self.params.altitude_error_clip_m, self.params.altitude_error_clip_m)
+        x = np.array([e_v, gamma - gamma_r, q - q_r, theta - g.trim_theta_rad, e_h, self._int_v, self._int_h])
+        u = np.array([g.trim_elevator, g.trim_throttle]) - self._k_lon @ x
+        elevator = _clip(float(u[0]), -1.0, 1.0)
+        throttle = _clip(float(u[1]), 0.0, 1.0)
+        # Integrate unless the actuator the integral mostly drives is saturated in that direction
+        # (conditional integration anti-windup).
+        if throttle == float(u[1]):
+            self._int_v = _clip(self._int_v + e_v * dt, -50.0, 50.0)
+        if elevator == float(u[0]):
+            self._int_h = _clip(self._int_h + e_h * dt, -200.0, 200.0)
+
+        # Roll loop and yaw damper.
+        e_phi = phi_c - phi
+        aileron_u = g.trim_aileron + g.k_phi * e_phi - g.k_p * p + g.k_i_phi * self._int_phi
+        aileron = _clip(aileron_u, -1.0, 1.0)
+        if aileron == aileron_u:
+            self._int_phi = _clip(self._int_phi + e_phi * dt, -0.5, 0.5)
+        r_c = G * math.sin(phi) * math.cos(theta) / v_for_rates
+        rudder = _clip(g.trim_rudder - g.k_r * (r - r_c), -1.0, 1.0)
+
+        seg = self.segments[out.segment_index]
+        on_leg = isinstance(seg, LineSegment) and seg.is_leg
+        nan2 = (float("nan"), float("nan"))
+        self._status = GuidanceStatus(
+            t_s=t_s,
+            leg_index=out.segment_index,
+            on_leg=on_leg,
+            alt_cmd_m=h_cmd,
+            airspeed_cmd_mps=self.airspeed_cmd_mps,
+            line_start_ne_m=tuple(float(c) for c in seg.start_ne_m) if on_leg else nan2,
+            line_end_ne_m=tuple(float(c) for c in seg.end_ne_m) if on_leg else nan2,
+            bank_cmd_rad=phi_c,
+            cross_track_est_m=out.cross_track_m,
+        )
+        return SurfaceCommand(aileron=aileron, elevator=elevator, rudder=rudder, throttle=throttle)
+
+    def status(self) -> GuidanceStatus:
+        return self._status
