@@ -52,3 +52,42 @@ class LocalRaster:
         return np.array(
             [[g, 0.0, self.east0_m + 0.5 * g], [0.0, -g, self.north0_m - 0.5 * g], [0.0, 0.0, 1.0]]
         )
+
+
+
+def sample_bilinear(raster: LocalRaster, north_m, east_m):
+    """Bilinear value of `raster` at local (north_m, east_m) (arrays broadcast together).
+
+    Returns (values, valid): values float64 of shape (..., C) for (H, W, C) data or (...) for
+    (H, W) data; valid False where any of the four neighbours with non-zero weight is invalid
+    or outside the grid (values there are 0). Exact float weights (no 1/32 quantisation).
+    """
+    row, col = raster.ne_to_rowcol(north_m, east_m)
+    return bilinear_at_rowcol(raster.data, raster.valid, row, col)
+
+
+def bilinear_at_rowcol(data: np.ndarray, valid: np.ndarray, row, col):
+    """Bilinear interpolation of data (H, W[, C]) at continuous (row, col), centres at integers.
+
+    Returns (values float64 (...[, C]), valid bool (...)) as sample_bilinear does.
+    """
+    row, col = np.broadcast_arrays(np.asarray(row, float), np.asarray(col, float))
+    h, w = data.shape[:2]
+    inside = (row >= 0) & (col >= 0) & (row <= h - 1) & (col <= w - 1)
+    rs = np.where(inside, row, 0.0)
+    cs = np.where(inside, col, 0.0)
+    r0 = np.clip(np.floor(rs).astype(np.int64), 0, max(h - 2, 0))
+    c0 = np.clip(np.floor(cs).astype(np.int64), 0, max(w - 2, 0))
+    fr = rs - r0
+    fc = cs - c0
+    r1 = np.minimum(r0 + 1, h - 1)
+    c1 = np.minimum(c0 + 1, w - 1)
+    extra = (None,) * (data.ndim - 2)
+    out = np.zeros(row.shape + data.shape[2:])
+    ok = inside.copy()
+    for wt, ri, ci in (((1 - fr) * (1 - fc), r0, c0), ((1 - fr) * fc, r0, c1),
+                       (fr * (1 - fc), r1, c0), (fr * fc, r1, c1)):
+        out += data[ri, ci].astype(np.float64) * wt[(...,) + extra]
+        ok &= valid[ri, ci] | (wt <= 0.0)
+    out[~ok] = 0.0
+    return out, ok

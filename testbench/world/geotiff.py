@@ -1,0 +1,334 @@
+"""Georeferenced rasters (GeoTIFF, any CRS) read onto the scenario's local north-east grid.
+
+`GeoRasterReader` is the shared machinery (open + checks, windowed/decimated reads, reprojection
+onto a `LocalRaster`); `MapSource` is the imagery view of it (RGB uint8). Elevation lives in
+elevation.py. Only windows are ever read: coarse output grids are read decimated through
+`out_shape` (GDAL then uses the file's overviews), so a 10 km x 10 km map at 1 m never sits in
+memory.
+
+Pixel convention of the source: rasterio's affine maps (col, row) of pixel CORNERS; the centre
+of pixel (r, c) is transform * (c + 0.5, r + 0.5). Internally we use continuous source pixel
+coordinates with centres at integers, as the LocalRaster grid does.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+import rasterio
+from rasterio.enums import ColorInterp, Resampling
+from rasterio.windows import Window
+
+from testbench.core.errors import InputError
+from testbench.core.interfaces import GeodeticOrigin
+from testbench.world.georef import LocalFrame, interp_grid
+from testbench.world.raster import LocalRaster, bilinear_at_rowcol
+
+log = logging.getLogger(__name__)
+
+_NODE_STEP = 32  # output pixels between exactly transformed grid nodes
+_MAX_CV_SIZE = 32000  # cv2.remap needs sizes below SHRT_MAX
+
+
+@dataclass(frozen=True)
+class Footprint:
+    """Where a map lies in local NE (m): its 4 corners and their bounding box."""
+
+    corners_ne_m: np.ndarray  # (4, 2) north, east of the NW, NE, SE, SW image corners
+    north_min_m: float
+    north_max_m: float
+    east_min_m: float
+    east_max_m: float
+
+
+def open_georaster(path: str | os.PathLike, what: str) -> rasterio.io.DatasetReader:
+    """Open `path` with rasterio and check it is georeferenced; InputError otherwise."""
+    path = os.fspath(path)
+    if not os.path.exists(path):
+        raise InputError(f"{what} '{path}': no such file")
+    try:
+        ds = rasterio.open(path)
+    except rasterio.errors.RasterioIOError as exc:
+        raise InputError(f"{what} '{path}': not a readable raster ({exc})") from None
+    if ds.crs is None or ds.transform.is_identity:
+        gcps = " (it has only GCPs: warp it with gdalwarp -t_srs EPSG:XXXX first)" if ds.gcps[0] else ""
+        ds.close()
+        raise InputError(
+            f"{what} '{path}': no georeference{gcps}; add a world file (.tfw) and .aux.xml / .prj "
+            f"with the CRS, or run `gdal_translate -a_srs EPSG:XXXX -a_ullr ULX ULY LRX LRY in.tif out.tif`"
+        )
+    if abs(ds.transform.b) > 0 or abs(ds.transform.d) > 0:
+        log.info("%s has a rotated/sheared geotransform; handled by the general reprojection", path)
+    return ds
+
+
+class GeoRasterReader:
+    """One georeferenced raster, read in windows onto local north-up grids.
+
+    bands: 1-based band indices to read (in output order). resampling: used when reading
+    decimated (coarse output grids). The dataset stays open (rasterio handle) until close().
+    """
+
+    def __init__(self, path, origin: GeodeticOrigin, bands: list[int], *, what: str,
+                 resampling: Resampling = Resampling.average):
+        self.path = os.fspath(path)
+        self.origin = origin
+        self.what = what
+        self.ds = open_georaster(path, what)
+        self.frame = LocalFrame(origin, self.ds.crs, where=f"{what} '{self.path}'")
+        self.bands = bands
+        self.resampling = resampling
+        self.footprint = self._footprint()
+        self.native_gsd_m = self._native_gsd()
+        dist = float(np.hypot(0.5 * (self.footprint.north_min_m + self.footprint.north_max_m),
+                              0.5 * (self.footprint.east_min_m + self.footprint.east_max_m)))
+        if dist > 200e3:
+            log.warning("%s '%s' lies %.0f km from the scenario origin: the local tangent plane "
+                        "is a poor approximation there", what, self.path, dist / 1e3)
+
+    # -- geometry -------------------------------------------------------------------------
+    def _footprint(self) -> Footprint:
+        h, w = self.ds.height, self.ds.width
+        # Sample the border densely: the edges are not straight lines in local NE.
+        t = np.linspace(0.0, 1.0, 33)
+        cols = np.concatenate([t * w, np.full_like(t, w), (1 - t) * w, np.zeros_like(t)])
+        rows = np.concatenate([np.zeros_like(t), t * h, np.full_like(t, h), (1 - t) * h])
+        xs, ys = self.ds.transform * (cols, rows)
+        n, e = self.frame.xy_to_ne(xs, ys)
+        k = len(t)
+        corners = np.stack([n[[0, k, 2 * k, 3 * k]], e[[0, k, 2 * k, 3 * k]]], axis=-1)
+        return Footprint(corners, float(n.min()), float(n.max()), float(e.min()), float(e.max()))
+
+    def _native_gsd(self) -> float:
+        """Mean ground size (m) of one source pixel near the map centre."""
+        h, w = self.ds.height, self.ds.width
+        cols = np.array([w / 2, w / 2 + 1, w / 2])
+        rows = np.array([h / 2, h / 2, h / 2 + 1])
+        xs, ys = self.ds.transform * (cols, rows)
+        n, e = self.frame.xy_to_ne(xs, ys)
+        dx = np.hypot(n[1] - n[0], e[1] - e[0])
+        dy = np.hypot(n[2] - n[0], e[2] - e[0])
+        return float(np.sqrt(dx * dy))
+
+    def ne_to_src_colrow(self, north_m, east_m):
+        """Local NE (m) -> continuous source (col, row), pixel centres at integers."""
+        x, y = self.frame.ne_to_xy(north_m, east_m)
+        col, row = ~self.ds.transform * (x, y)
+        return np.asarray(col) - 0.5, np.asarray(row) - 0.5
+
+    # -- reading --------------------------------------------------------------------------
+    def read_grid(self, north0_m: float, east0_m: float, gsd_m: float, height: int, width: int):
+        """Reproject onto the local grid with NW corner (north0_m, east0_m), `gsd_m` m/px.
+
+        Returns (data, valid): data (height, width, len(bands)) in the source dtype, valid
+        (height, width) bool (False off-map and at nodata; data 0 there).
+        """
+        if height > _MAX_CV_SIZE or width > _MAX_CV_SIZE:
+            raise InputError(f"{self.what} '{self.path}': requested window {height}x{width} px is "
+                             f"too large; use a coarser gsd_m")
+        step = _NODE_STEP
+        nr = max(2, -(-(height - 1) // step) + 1)
+        nc = max(2, -(-(width - 1) // step) + 1)
+        rr = np.arange(nr) * step
+        cc = np.arange(nc) * step
+        north = north0_m - (rr[:, None] + 0.5) * gsd_m
+        east = east0_m + (cc[None, :] + 0.5) * gsd_m
+        col_n, row_n = self.ne_to_src_colrow(north, east)
+        # Source pixels per output pixel: choose the decimation of the read.
+        dc = np.hypot(np.diff(col_n, axis=1), np.diff(row_n, axis=1)).mean() / step
+        dr = np.hypot(np.diff(col_n, axis=0), np.diff(row_n, axis=0)).mean() / step
+        factor = max(1, int(np.floor(min(dc, dr))))
+        margin = 2 + factor
+        c_lo = int(np.floor(col_n.min())) - margin
+        c_hi = int(np.ceil(col_n.max())) + margin + 1
+        r_lo = int(np.floor(row_n.min())) - margin
+        r_hi = int(np.ceil(row_n.max())) + margin + 1
+        c_lo, r_lo = max(c_lo, 0), max(r_lo, 0)
+        c_hi, r_hi = min(c_hi, self.ds.width), min(r_hi, self.ds.height)
+        nb = len(self.bands)
+        if c_hi - c_lo < 2 or r_hi - r_lo < 2:  # entirely off the map
+            data = np.zeros((height, width, nb), dtype=self.ds.dtypes[self.bands[0] - 1])
+            return data, np.zeros((height, width), bool)
+        win = Window(c_lo, r_lo, c_hi - c_lo, r_hi - r_lo)
+        out_h = max(2, -(-win.height // factor))
+        out_w = max(2, -(-win.width // factor))
+        if (out_h, out_w) == (win.height, win.width):
+            src = self.ds.read(self.bands, window=win)
+            mask = self.ds.dataset_mask(window=win)
+        else:
+            src = self.ds.read(self.bands, window=win, out_shape=(nb, out_h, out_w),
+                               resampling=self.resampling)
+            mask = self.ds.dataset_mask(window=win, out_shape=(out_h, out_w),
+                                        resampling=Resampling.nearest)
+        if max(out_h, out_w) > _MAX_CV_SIZE:
+            raise InputError(f"{self.what} '{self.path}': window too large for one read; "
+                             "use a coarser gsd_m or a smaller window")
+        sx, sy = win.width / out_w, win.height / out_h
+        # Source centre coordinates -> coordinates in the (decimated) window array.
+        map_c = interp_grid((col_n - c_lo + 0.5) / sx - 0.5, step, height, width)
+        map_r = interp_grid((row_n - r_lo + 0.5) / sy - 0.5, step, height, width)
+        src = np.ascontiguousarray(np.moveaxis(src, 0, -1))
+        bad = mask == 0
+        if bad.any() and not bad.all():
+            # Fill nodata with the window mean so that it cannot leak into valid pixels
+            # through bilinear weights (-32767 times a tiny weight is still a cliff).
+            src[bad] = src[~bad].mean(axis=0).astype(src.dtype)
+        out = _remap(src, map_c, map_r)
+        m = cv2.remap(mask, map_c, map_r, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                      borderValue=0)
+        valid = m >= 250  # every neighbour with weight >= 1/32 valid
+        out[~valid] = 0
+        return out.reshape(height, width, nb), valid
+
+    def sample_points(self, north_m, east_m):
+        """Bilinear source values at local points, native resolution, exact float weights.
+
+        Returns (values float64 (..., n_bands), valid bool (...)). Reads the one source window
+        that covers all the points (sparse queries over a limited area).
+        """
+        n, e = np.broadcast_arrays(np.asarray(north_m, float), np.asarray(east_m, float))
+        nb = len(self.bands)
+        out = np.zeros(n.shape + (nb,))
+        ok = np.zeros(n.shape, bool)
+        col, row = self.ne_to_src_colrow(n, e)
+        fin = np.isfinite(col) & np.isfinite(row)
+        fin &= (col > -1) & (row > -1) & (col < self.ds.width) & (row < self.ds.height)
+        if not fin.any():
+            return out, ok
+        c_lo = max(int(np.floor(col[fin].min())), 0)
+        r_lo = max(int(np.floor(row[fin].min())), 0)
+        c_hi = min(int(np.floor(col[fin].max())) + 2, self.ds.width)
+        r_hi = min(int(np.floor(row[fin].max())) + 2, self.ds.height)
+        win = Window(c_lo, r_lo, c_hi - c_lo, r_hi - r_lo)
+        src = np.moveaxis(self.ds.read(self.bands, window=win), 0, -1)
+        mask = self.ds.dataset_mask(window=win) > 0
+        vals, valid = bilinear_at_rowcol(src, mask, np.where(fin, row - r_lo, -1.0),
+                                         np.where(fin, col - c_lo, -1.0))
+        return vals, valid
+
+    def grid_shape(self, north_min_m, north_max_m, east_min_m, east_max_m, gsd_m):
+        """(height, width) of the local grid covering the box at gsd_m (rounded, >= 1)."""
+        if not gsd_m > 0:
+            raise InputError(f"{self.what}: gsd_m must be > 0, got {gsd_m}")
+        if not (north_max_m > north_min_m and east_max_m > east_min_m):
+            raise InputError(f"{self.what}: empty window north [{north_min_m}, {north_max_m}] "
+                             f"east [{east_min_m}, {east_max_m}]")
+        h = max(1, int(np.ceil((north_max_m - north_min_m) / gsd_m - 1e-9)))
+        w = max(1, int(np.ceil((east_max_m - east_min_m) / gsd_m - 1e-9)))
+        return h, w
+
+    def close(self) -> None:
+        self.ds.close()
+
+
+def _remap(src: np.ndarray, map_c: np.ndarray, map_r: np.ndarray) -> np.ndarray:
+    """cv2.remap (bilinear, constant 0 border) for any band count (cv2 takes <= 4 channels)."""
+    kw = dict(interpolation=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+    if src.shape[2] <= 4:
+        out = cv2.remap(src, map_c, map_r, **kw)
+        return out.reshape(map_c.shape + (src.shape[2],))
+    return np.stack([cv2.remap(np.ascontiguousarray(src[..., i]), map_c, map_r, **kw)
+                     for i in range(src.shape[2])], axis=-1)
+
+
+def _rgb_bands(ds) -> tuple[list[int], bool]:
+    """Band indices for R, G, B (grey replicated) and whether a rescale to uint8 is needed."""
+    ci = list(ds.colorinterp)
+    if ds.count >= 3:
+        if ColorInterp.red in ci and ColorInterp.green in ci and ColorInterp.blue in ci:
+            bands = [ci.index(ColorInterp.red) + 1, ci.index(ColorInterp.green) + 1,
+                     ci.index(ColorInterp.blue) + 1]
+        else:  # e.g. NAIP R, G, B, NIR with undefined interpretation
+            bands = [1, 2, 3]
+    else:
+        bands = [1]
+    return bands, ds.dtypes[0] != "uint8"
+
+
+class MapSource:
+    """Georeferenced imagery (GeoTIFF in any CRS) seen on the scenario's local NE grid.
+
+    Bands: RGB uint8 out; 1-band grey is replicated to RGB; a 4th band (NIR, alpha) is
+    dropped (alpha still marks nodata through the dataset mask). Non-uint8 imagery is
+    stretched linearly between its 0.5 and 99.5 percentiles (from an overview read).
+    """
+
+    def __init__(self, path, origin: GeodeticOrigin):
+        ds_probe = open_georaster(path, "map imagery")
+        bands, rescale = _rgb_bands(ds_probe)
+        ds_probe.close()
+        self._reader = GeoRasterReader(path, origin, bands, what="map imagery")
+        self.path = self._reader.path
+        self.origin = origin
+        self._grey = len(bands) == 1
+        self._stretch = self._stretch_limits() if rescale else None
+        self._cache: tuple[tuple, LocalRaster] | None = None
+
+    crs = property(lambda self: self._reader.ds.crs)
+    footprint = property(lambda self: self._reader.footprint,
+                         doc="Footprint: where the map lies in local NE (m).")
+    native_gsd_m = property(lambda self: self._reader.native_gsd_m,
+                            doc="Ground size of one source pixel near the map centre (m).")
+
+    def _stretch_limits(self):
+        ds = self._reader.ds
+        k = max(1, max(ds.width, ds.height) // 512)
+        a = ds.read(self._reader.bands, out_shape=(len(self._reader.bands), ds.height // k or 1,
+                                                  ds.width // k or 1)).astype(np.float64)
+        lo, hi = np.percentile(a, [0.5, 99.5])
+        return float(lo), float(max(hi, lo + 1e-9))
+
+    def _to_rgb8(self, data: np.ndarray) -> np.ndarray:
+        if self._stretch is not None:
+            lo, hi = self._stretch
+            data = np.clip((data.astype(np.float32) - lo) * (255.0 / (hi - lo)) + 0.5, 0, 255)
+            data = data.astype(np.uint8)
+        if self._grey:
+            data = np.repeat(data[..., :1], 3, axis=-1)
+        return data
+
+    def read_local(self, north_min_m: float, north_max_m: float, east_min_m: float,
+                   east_max_m: float, gsd_m: float) -> LocalRaster:
+        """Imagery on the local north-up grid covering the box, at gsd_m m per pixel.
+
+        Grid: north0_m = north_max_m, east0_m = east_min_m, height = ceil(dN/gsd),
+        width = ceil(dE/gsd). data (H, W, 3) uint8 RGB; valid False off-map and at nodata.
+        The last window is cached (same arguments -> same object).
+        """
+        key = (north_min_m, north_max_m, east_min_m, east_max_m, gsd_m)
+        if self._cache is not None and self._cache[0] == key:
+            return self._cache[1]
+        h, w = self._reader.grid_shape(*key)
+        data, valid = self._reader.read_grid(north_max_m, east_min_m, gsd_m, h, w)
+        r = LocalRaster(self._to_rgb8(data), valid, float(north_max_m), float(east_min_m),
+                        float(gsd_m))
+        self._cache = (key, r)
+        return r
+
+    def sample(self, north_m, east_m):
+        """Bilinear RGB at local points at the map's native resolution.
+
+        Returns (rgb float64 (..., 3), valid bool (...)). Reads the source window that covers
+        the points, so meant for sparse queries over a limited area.
+        """
+        vals, valid = self._reader.sample_points(north_m, east_m)
+        if self._stretch is not None:
+            lo, hi = self._stretch
+            vals = np.where(valid[..., None], np.clip((vals - lo) * (255.0 / (hi - lo)), 0, 255), 0)
+        if self._grey:
+            vals = np.repeat(vals[..., :1], 3, axis=-1)
+        return vals, valid
+
+    def close(self) -> None:
+        self._reader.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+

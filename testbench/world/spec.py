@@ -1,0 +1,135 @@
+"""World sources named in scenarios: a GeoTIFF path or a `procedural:` spec.
+
+    procedural:farmland?seed=7&season=summer&size_km=6&gsd_m=1
+
+generates the world (imagery.tif + elevation.tif, georeferenced at the scenario origin) once
+into a cache folder keyed by the spec AND the origin, so that several vehicles and runs reuse
+it. Files are written to temporary names and renamed: a reader never sees a partial file.
+Cache root: `cache_dir`, else $TESTBENCH_CACHE, else ~/.cache/testbench/worlds.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+import os
+from dataclasses import dataclass
+from urllib.parse import parse_qsl
+
+from testbench.core.errors import InputError
+from testbench.core.interfaces import GeodeticOrigin
+
+log = logging.getLogger(__name__)
+
+PREFIX = "procedural:"
+_KEYS = {"seed": int, "season": str, "size_km": float, "gsd_m": float}
+_DEFAULTS = {"seed": 0, "season": "summer", "size_km": 6.0, "gsd_m": 1.0}
+
+
+@dataclass(frozen=True)
+class ProceduralSpec:
+    """A parsed `procedural:` world spec."""
+
+    terrain: str
+    seed: int = 0
+    season: str = "summer"
+    size_km: float = 6.0
+    gsd_m: float = 1.0
+
+    def canonical(self) -> str:
+        return (f"{PREFIX}{self.terrain}?seed={self.seed}&season={self.season}"
+                f"&size_km={self.size_km:g}&gsd_m={self.gsd_m:g}")
+
+
+def is_procedural(spec) -> bool:
+    return isinstance(spec, str) and spec.strip().startswith(PREFIX)
+
+
+def parse_spec(spec: str) -> ProceduralSpec:
+    """Parse 'procedural:TERRAIN?key=value&...' (keys: seed, season, size_km, gsd_m)."""
+    from testbench.world.procedural import TERRAINS, season_from
+
+    body = spec.strip()[len(PREFIX):]
+    terrain, _, query = body.partition("?")
+    terrain = terrain.strip().lower()
+    if terrain not in TERRAINS:
+        raise InputError(f"world '{spec}': unknown terrain '{terrain}', expected one of "
+                         f"{', '.join(TERRAINS)}")
+    vals = dict(_DEFAULTS)
+    for k, v in parse_qsl(query, keep_blank_values=True):
+        if k not in _KEYS:
+            raise InputError(f"world '{spec}': unknown key '{k}', expected {', '.join(_KEYS)}")
+        try:
+            vals[k] = _KEYS[k](v)
+        except ValueError:
+            raise InputError(f"world '{spec}': {k}={v!r} is not a {_KEYS[k].__name__}") from None
+    vals["season"] = season_from(vals["season"]).name
+    if not (vals["size_km"] > 0 and vals["gsd_m"] > 0):
+        raise InputError(f"world '{spec}': size_km and gsd_m must be > 0")
+    return ProceduralSpec(terrain, **vals)
+
+
+def default_cache_dir() -> str:
+    return os.environ.get("TESTBENCH_CACHE") or os.path.join(
+        os.path.expanduser("~"), ".cache", "testbench", "worlds")
+
+
+def world_dir(spec: ProceduralSpec, origin: GeodeticOrigin, cache_dir=None) -> str:
+    """Cache folder of a spec at an origin (name readable, hash for the exact key)."""
+    key = f"{spec.canonical()}|{origin.lat_rad:.12f}|{origin.lon_rad:.12f}|{origin.alt_m:.4f}|v1"
+    h = hashlib.sha256(key.encode()).hexdigest()[:12]
+    name = f"{spec.terrain}-seed{spec.seed}-{spec.season}-{spec.size_km:g}km-{spec.gsd_m:g}m-{h}"
+    return os.path.join(os.fspath(cache_dir) if cache_dir else default_cache_dir(), name)
+
+
+def ensure_world(spec: ProceduralSpec, origin: GeodeticOrigin, cache_dir=None) -> tuple[str, str]:
+    """Generate the world files if absent; returns (imagery_path, elevation_path)."""
+    from testbench.world.procedural import make_world
+    from testbench.world.procedural.writer import write_world
+
+    d = world_dir(spec, origin, cache_dir)
+    img, dem = os.path.join(d, "imagery.tif"), os.path.join(d, "elevation.tif")
+    if os.path.exists(img) and os.path.exists(dem):
+        return img, dem
+    log.info("generating procedural world %s into %s", spec.canonical(), d)
+    rgb, z, valid = make_world(spec.terrain, spec.size_km, spec.gsd_m, spec.seed, spec.season)
+    write_world(d, rgb, z, valid, origin, spec.gsd_m)  # elevation first, imagery last
+    return img, dem
+
+
+def _resolve(path: str, base_dir) -> str:
+    p = os.path.expandvars(os.path.expanduser(path))
+    if base_dir and not os.path.isabs(p):
+        p = os.path.join(base_dir, p)
+    return p
+
+
+def open_world_imagery(spec_or_path, origin: GeodeticOrigin, cache_dir=None, base_dir=None):
+    """MapSource for a GeoTIFF path or a `procedural:` spec (generated and cached)."""
+    from testbench.world.geotiff import MapSource
+
+    if is_procedural(spec_or_path):
+        img, _ = ensure_world(parse_spec(spec_or_path), origin, cache_dir)
+        return MapSource(img, origin)
+    return MapSource(_resolve(os.fspath(spec_or_path), base_dir), origin)
+
+
+def open_elevation(spec_or_path, origin: GeodeticOrigin, cache_dir=None, base_dir=None):
+    """ElevationModel for a DEM path or a `procedural:` spec; FlatElevation for None/'flat'.
+
+    'flat:H' gives flat ground H m above the origin altitude.
+    """
+    from testbench.world.elevation import ElevationModel, FlatElevation
+
+    if spec_or_path is None:
+        return FlatElevation(0.0)
+    if isinstance(spec_or_path, str) and spec_or_path.strip().lower().startswith("flat"):
+        _, _, hs = spec_or_path.partition(":")
+        try:
+            return FlatElevation(float(hs) if hs.strip() else 0.0)
+        except ValueError:
+            raise InputError(f"elevation '{spec_or_path}': expected 'flat' or 'flat:HEIGHT_M'") from None
+    if is_procedural(spec_or_path):
+        _, dem = ensure_world(parse_spec(spec_or_path), origin, cache_dir)
+        return ElevationModel(dem, origin)
+    return ElevationModel(_resolve(os.fspath(spec_or_path), base_dir), origin)
