@@ -1,0 +1,209 @@
+"""Error-state extended Kalman filter around the strapdown INS (16 states, error_model.py).
+
+Nominal state: the strapdown INS (lat, lon, h, v_ned, q_nb) plus gyro bias b_g (rad/s),
+accelerometer bias b_a (m/s^2) and barometer bias b_baro (m), all Gauss-Markov processes.
+
+Prediction runs the mechanisation at every IMU sample (~11 us). The covariance is propagated
+at a lower rate: the IMU samples of `cov_interval_s` (default 0.05 s, i.e. 5-10 IMU samples)
+are accumulated (elapsed time and the specific force resolved in NED) and P is propagated
+once over that interval with Phi = I + F T + (F T)^2 / 2 built at the end of it. F changes
+slowly (attitude by a few centiradians in a turn over 0.05 s), so the error of this choice is
+far below the model's own approximations, and it divides the cost of the 16 x 16 matrix
+work by the number of samples. Every update first flushes the pending interval, so P is
+always current when a measurement is used.
+
+Updates: y = z - h(x_nominal), H = dh/d(error), chi-square gate on the NIS at a configurable
+probability, Joseph-form covariance update, injection of the error into the nominal state and
+the covariance reset P <- G P G^T (error_model.reset_jacobian).
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+
+import numpy as np
+from scipy.stats import chi2
+
+from testbench.core.errors import SimulationAborted
+from testbench.core.messages import CorrectionInfo
+from testbench.core.rotations import quat_to_dcm
+from testbench.navigation.ins.error_model import (
+    IA,
+    IBA,
+    IBB,
+    IBG,
+    IV,
+    N_STATES,
+    continuous_F,
+    discretize,
+    inject_nav,
+    process_noise_diag,
+    reset_jacobian,
+)
+from testbench.navigation.ins.imu_noise import ImuNoiseSI
+from testbench.navigation.ins.mechanization import StrapdownINS
+
+
+@lru_cache(maxsize=64)
+def chi2_threshold(probability: float, dof: int) -> float:
+    """Gate on the NIS: the chi-square quantile with `dof` degrees of freedom."""
+    return float(chi2.ppf(probability, dof))
+
+
+class ErrorStateEKF:
+    """Error-state EKF of one vehicle. Shapes: P (16, 16); error vector layout in error_model.
+
+    noise: IMU noise model; gate_probability: chi-square gate (e.g. 0.999; 1.0 disables);
+    cov_interval_s: covariance propagation interval (0: every IMU sample);
+    baro_bias_rw_m_sqrt_s: random walk of the barometer bias state.
+    vehicle_id is only used in error messages.
+    """
+
+    def __init__(self, noise: ImuNoiseSI, *, gate_probability: float = 0.999,
+                 cov_interval_s: float = 0.05, baro_bias_rw_m_sqrt_s: float = 0.01,
+                 vehicle_id: str | None = None):
+        self.noise = noise
+        self.gate_probability = float(gate_probability)
+        self.cov_interval_s = float(cov_interval_s)
+        self.vehicle_id = vehicle_id
+        self._qc = process_noise_diag(noise, baro_bias_rw_m_sqrt_s)
+        self.ins: StrapdownINS | None = None
+        self.b_g = np.zeros(3)
+        self.b_a = np.zeros(3)
+        self.b_baro = 0.0
+        self.P = np.zeros((N_STATES, N_STATES))
+        self.omega_ib_b_rps = np.zeros(3)  # last bias-corrected gyro rate
+        self._acc_T = 0.0
+        self._acc_fn = [0.0, 0.0, 0.0]
+
+    # ------------------------------------------------------------------ state
+    def initialize(self, t_s: float, lat_rad: float, lon_rad: float, h_m: float, vel_ned_mps,
+                   q_nb_wxyz, P0: np.ndarray, b_g=None, b_a=None, b_baro: float = 0.0) -> None:
+        """Set the nominal state and its error covariance P0 (16, 16)."""
+        self.ins = StrapdownINS(t_s, lat_rad, lon_rad, h_m, vel_ned_mps, q_nb_wxyz)
+        self.b_g = np.zeros(3) if b_g is None else np.array(b_g, float)
+        self.b_a = np.zeros(3) if b_a is None else np.array(b_a, float)
+        self.b_baro = float(b_baro)
+        self.P = np.array(P0, float)
+        self._acc_T = 0.0
+        self._acc_fn = [0.0, 0.0, 0.0]
+        self._check("initial covariance")
+
+    @property
+    def t_s(self) -> float:
+        return self.ins.t_s
+
+    @property
+    def C_nb(self) -> np.ndarray:
+        return quat_to_dcm(np.array(self.ins.q))
+
+    def covariance(self) -> np.ndarray:
+        """Current error covariance (16, 16), with any pending propagation applied."""
+        self.flush()
+        return self.P.copy()
+
+    # ------------------------------------------------------------- prediction
+    def propagate(self, t_s: float, omega_ib_b_rps, f_ib_b_mps2) -> None:
+        """Advance to t_s with the raw IMU output (rad/s, m/s^2, body FRD) held over the interval."""
+        ins = self.ins
+        dt = t_s - ins.t_s
+        if not dt > 0.0:
+            return
+        bg, ba = self.b_g, self.b_a
+        wx, wy, wz = omega_ib_b_rps[0] - bg[0], omega_ib_b_rps[1] - bg[1], omega_ib_b_rps[2] - bg[2]
+        fx, fy, fz = f_ib_b_mps2[0] - ba[0], f_ib_b_mps2[1] - ba[1], f_ib_b_mps2[2] - ba[2]
+        ins.step_increments((wx * dt, wy * dt, wz * dt), (fx * dt, fy * dt, fz * dt), dt)
+        ins.t_s = float(t_s)
+        self.omega_ib_b_rps = (wx, wy, wz)
+        # Specific force in NED (for F's -[f_n x] block), accumulated over the interval.
+        qw, qx, qy, qz = ins.q
+        acc = self._acc_fn
+        acc[0] += ((1 - 2 * (qy * qy + qz * qz)) * fx + 2 * (qx * qy - qw * qz) * fy + 2 * (qx * qz + qw * qy) * fz) * dt
+        acc[1] += (2 * (qx * qy + qw * qz) * fx + (1 - 2 * (qx * qx + qz * qz)) * fy + 2 * (qy * qz - qw * qx) * fz) * dt
+        acc[2] += (2 * (qx * qz - qw * qy) * fx + 2 * (qy * qz + qw * qx) * fy + (1 - 2 * (qx * qx + qy * qy)) * fz) * dt
+        self._acc_T += dt
+        if self._acc_T >= self.cov_interval_s:
+            self.flush()
+
+    def flush(self) -> None:
+        """Propagate P over the accumulated interval (no-op when nothing is pending)."""
+        T = self._acc_T
+        if T <= 0.0:
+            return
+        ins, n = self.ins, self.noise
+        f_n = np.array(self._acc_fn) / T
+        F = continuous_F(ins.lat_rad, ins.h_m, ins.vel, self.C_nb, f_n,
+                         n.gyro_bias_tau_s, n.accel_bias_tau_s)
+        Phi, Qd = discretize(F, self._qc, T)
+        P = Phi @ self.P @ Phi.T + Qd
+        self.P = 0.5 * (P + P.T)
+        # The nominal Gauss-Markov biases decay like their errors do (consistent model).
+        self.b_g *= math.exp(-T / n.gyro_bias_tau_s)
+        self.b_a *= math.exp(-T / n.accel_bias_tau_s)
+        self._acc_T = 0.0
+        self._acc_fn = [0.0, 0.0, 0.0]
+        self._check("covariance propagation")
+
+    # ---------------------------------------------------------------- updates
+    def update(self, kind: str, t_s: float, y, H, R, gate: bool = True) -> CorrectionInfo:
+        """Kalman update with residual y (m,), Jacobian H (m, 16), noise R (m, m).
+
+        The NIS y^T S^-1 y is compared with the chi-square quantile at gate_probability;
+        a rejected measurement leaves the state untouched.
+        """
+        self.flush()
+        y = np.atleast_1d(np.asarray(y, float))
+        H = np.atleast_2d(np.asarray(H, float))
+        R = np.atleast_2d(np.asarray(R, float))
+        P = self.P
+        PHt = P @ H.T
+        S = H @ PHt + R
+        S = 0.5 * (S + S.T)
+        try:
+            S_inv_y = np.linalg.solve(S, y)
+        except np.linalg.LinAlgError:
+            raise SimulationAborted(f"EKF {kind} update: singular innovation covariance",
+                                    t_s=t_s, vehicle_id=self.vehicle_id) from None
+        nis = float(y @ S_inv_y)
+        accepted = bool(np.isfinite(nis)) and (
+            not gate or self.gate_probability >= 1.0 or nis <= chi2_threshold(self.gate_probability, y.size)
+        )
+        if accepted:
+            K = np.linalg.solve(S, PHt.T).T  # P H^T S^-1 (S symmetric)
+            dx = K @ y
+            IKH = np.eye(N_STATES) - K @ H
+            P = IKH @ P @ IKH.T + K @ R @ K.T
+            self.inject(dx)
+            G = reset_jacobian(dx[IA])
+            P = G @ P @ G.T
+            self.P = 0.5 * (P + P.T)
+            self._check(f"{kind} update")
+        return CorrectionInfo(t_s=float(t_s), kind=kind, innovation=y, innovation_cov=S,
+                              nis=nis, accepted=accepted)
+
+    def inject(self, dx: np.ndarray) -> None:
+        """Nominal <- nominal (+) dx (16,)."""
+        ins = self.ins
+        lat, lon, h, v, q = inject_nav(ins.lat_rad, ins.lon_rad, ins.h_m, ins.vel, ins.q, dx)
+        ins.lat_rad, ins.lon_rad, ins.h_m = lat, lon, h
+        ins.vel = tuple(float(x) for x in v)
+        ins.q = tuple(float(x) for x in q)
+        self.b_g = self.b_g + dx[IBG]
+        self.b_a = self.b_a + dx[IBA]
+        self.b_baro += float(dx[IBB])
+
+    # ------------------------------------------------------------------ guard
+    def _check(self, where: str) -> None:
+        P = self.P
+        ins = self.ins
+        state_ok = all(math.isfinite(x) for x in (ins.lat_rad, ins.lon_rad, ins.h_m, *ins.vel, *ins.q))
+        if not state_ok or not np.all(np.isfinite(P)) or np.any(np.diag(P) < 0.0):
+            raise SimulationAborted(
+                f"EKF diverged after {where}: non-finite state or covariance "
+                f"(state finite: {state_ok}, min diag(P) = {np.nanmin(np.diag(P)):.3g})",
+                t_s=ins.t_s, vehicle_id=self.vehicle_id,
+            )
+
+    def velocity_block(self) -> np.ndarray:
+        return self.P[IV, IV]

@@ -1,0 +1,111 @@
+"""Measurement models of the error-state EKF: residual y = z - h(nominal), Jacobian
+H = d h(nominal (+) error) / d error at zero error (16 columns, error_model layout), noise R.
+
+Each function takes the filter (`ErrorStateEKF`) for its nominal state and returns (y, H, R).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from testbench.core import geodesy
+from testbench.core.interfaces import GeodeticOrigin
+from testbench.core.rotations import dcm_to_euler, skew, wrap_pi
+from testbench.navigation.ins.error_model import IA, IBB, IP, IV, N_STATES
+
+
+def gnss_position(ekf, lat_rad: float, lon_rad: float, alt_m: float, sigma_ned_m):
+    """GNSS position (geodetic) -> residual in NED metres at the vehicle; H = [I 0 ...]."""
+    ins = ekf.ins
+    r_m, r_n = geodesy.radii_of_curvature(ins.lat_rad)
+    y = np.array([
+        (r_m + ins.h_m) * (lat_rad - ins.lat_rad),
+        (r_n + ins.h_m) * math.cos(ins.lat_rad) * math.remainder(lon_rad - ins.lon_rad, 2 * math.pi),
+        -(alt_m - ins.h_m),
+    ])
+    H = np.zeros((3, N_STATES))
+    H[:, IP] = np.eye(3)
+    return y, H, np.diag(np.square(sigma_ned_m))
+
+
+def gnss_velocity(ekf, vel_ned_mps, sigma_ned_mps):
+    """GNSS velocity (NED m/s); H = [0 I 0 ...]."""
+    y = np.asarray(vel_ned_mps, float) - np.array(ekf.ins.vel)
+    H = np.zeros((3, N_STATES))
+    H[:, IV] = np.eye(3)
+    return y, H, np.diag(np.square(sigma_ned_mps))
+
+
+def origin_rotation(lat_rad: float, lon_rad: float, origin: GeodeticOrigin) -> np.ndarray:
+    """R_on (3, 3): vehicle-local NED -> NED at the scenario origin (v_o = R_on v_n)."""
+    return geodesy.C_en(origin.lat_rad, origin.lon_rad).T @ geodesy.C_en(lat_rad, lon_rad)
+
+
+def nominal_pos_ned(ekf, origin: GeodeticOrigin) -> np.ndarray:
+    """Nominal position (3,) in local NED at the scenario origin (m)."""
+    ins = ekf.ins
+    return geodesy.geodetic_to_ned(ins.lat_rad, ins.lon_rad, ins.h_m,
+                                   origin.lat_rad, origin.lon_rad, origin.alt_m)
+
+
+def position_ned(ekf, pos_ned_m, cov_ned_m2, origin: GeodeticOrigin):
+    """Position fix in NED at the scenario origin (scene matching); H = [R_on 0 ...]."""
+    ins = ekf.ins
+    y = np.asarray(pos_ned_m, float) - nominal_pos_ned(ekf, origin)
+    H = np.zeros((3, N_STATES))
+    H[:, IP] = origin_rotation(ins.lat_rad, ins.lon_rad, origin)
+    return y, H, np.asarray(cov_ned_m2, float)
+
+
+def baro_altitude(ekf, altitude_m: float, sigma_m: float):
+    """Barometric altitude = h + b_baro; H[dp_D] = -1 (dh = -dp_D), H[b_baro] = 1."""
+    y = np.array([altitude_m - (ekf.ins.h_m + ekf.b_baro)])
+    H = np.zeros((1, N_STATES))
+    H[0, IP.start + 2] = -1.0
+    H[0, IBB] = 1.0
+    return y, H, np.array([[sigma_m**2]])
+
+
+def mag_vector(ekf, field_b_T, field_ned_T, sigma_T: float):
+    """3-axis magnetometer against the onboard model: h = C_nb^T B_n.
+
+    With C_true = (I + [phi x]) C_nb: h = C_nb^T B_n + C_nb^T [B_n x] phi, so H_phi = C_nb^T [B_n x].
+    """
+    C = ekf.C_nb
+    B_n = np.asarray(field_ned_T, float)
+    y = np.asarray(field_b_T, float) - C.T @ B_n
+    H = np.zeros((3, N_STATES))
+    H[:, IA] = C.T @ skew(B_n)
+    return y, H, np.eye(3) * sigma_T**2
+
+
+def yaw_jacobian(C_nb: np.ndarray) -> np.ndarray:
+    """d yaw(Exp(phi) C_nb) / d phi (3,), yaw = atan2(C10, C00): with dC = [phi x] C, the first
+    column c changes by phi x c."""
+    c = C_nb[:, 0]
+    den = c[0] ** 2 + c[1] ** 2
+    # d(c1)/dphi = (e1 x ... ): (phi x c)_1 = phi_2 c_0 - phi_0 c_2; (phi x c)_0 = phi_1 c_2 - phi_2 c_1
+    d_c1 = np.array([-c[2], 0.0, c[0]])
+    d_c0 = np.array([0.0, c[2], -c[1]])
+    return (c[0] * d_c1 - c[1] * d_c0) / den
+
+
+def mag_heading(ekf, field_b_T, field_ned_T, sigma_rad: float):
+    """Magnetic heading: the body field levelled with the nominal roll and pitch, plus the
+    model's declination, compared with the nominal yaw (the tilt enters only through the
+    levelling, which is the usual heading-aiding approximation)."""
+    C = ekf.C_nb
+    roll, pitch, yaw = dcm_to_euler(C)
+    cr, sr, cp, sp = math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch)
+    bx, by, bz = field_b_T
+    # Levelled field: Ry(pitch) Rx(roll) B_b (body -> heading frame).
+    hx = cp * bx + sp * sr * by + sp * cr * bz
+    hy = cr * by - sr * bz
+    decl = math.atan2(field_ned_T[1], field_ned_T[0])
+    heading = decl - math.atan2(hy, hx)
+    y = np.array([float(wrap_pi(heading - yaw))])
+    H = np.zeros((1, N_STATES))
+    H[0, IA] = yaw_jacobian(C)
+    return y, H, np.array([[sigma_rad**2]])

@@ -1,0 +1,250 @@
+"""The INS/EKF navigator component: `{type: ins_ekf, params: {...}}` in a scenario."""
+
+from __future__ import annotations
+
+import logging
+import math
+from typing import Literal
+
+import numpy as np
+import pydantic
+
+from testbench.core import geodesy
+from testbench.core.errors import InputError
+from testbench.core.interfaces import BuildContext, Navigator
+from testbench.core.messages import (
+    AirspeedSample,
+    BaroSample,
+    CorrectionInfo,
+    GnssFix,
+    ImuSample,
+    MagSample,
+    NavEstimate,
+    PositionFix,
+    TruthState,
+)
+from testbench.core.registry import ParamsModel, register
+from testbench.core.rotations import quat_to_dcm, quat_to_euler
+from testbench.core.units import DEG_TO_RAD, STANDARD_GRAVITY_MPS2
+from testbench.navigation.ins import measurements as meas
+from testbench.navigation.ins.consistency import error_state
+from testbench.navigation.ins.ekf import ErrorStateEKF
+from testbench.navigation.ins.error_model import IA, IBA, IBB, IBG, IP, IV, N_STATES
+from testbench.navigation.ins.imu_noise import imu_noise_from_datasheet, preset_datasheet, preset_names
+from testbench.navigation.ins.magnetic import OnboardMagneticModel
+
+log = logging.getLogger(__name__)
+
+
+class InitialSigmas(ParamsModel):
+    """1-sigma initial uncertainty per axis (used where the initial estimate carries none)."""
+
+    pos_m: float = pydantic.Field(3.0, gt=0)
+    vel_mps: float = pydantic.Field(0.2, gt=0)
+    tilt_deg: float = pydantic.Field(0.5, gt=0)
+    heading_deg: float = pydantic.Field(2.0, gt=0)
+    gyro_bias_deg_h: float | None = pydantic.Field(None, gt=0)
+    """None: the IMU preset's turn-on bias."""
+    accel_bias_ug: float | None = pydantic.Field(None, gt=0)
+    """None: the IMU preset's turn-on bias."""
+    baro_bias_m: float = pydantic.Field(3.0, gt=0)
+
+
+class ImuNoiseParams(ParamsModel):
+    """IMU noise in datasheet units (overrides the preset entry by entry)."""
+
+    gyro_arw_deg_sqrt_h: float | None = pydantic.Field(None, gt=0)
+    gyro_bias_instability_deg_h: float | None = pydantic.Field(None, gt=0)
+    accel_vrw_mps_sqrt_h: float | None = pydantic.Field(None, gt=0)
+    accel_bias_instability_ug: float | None = pydantic.Field(None, gt=0)
+    gyro_rrw_deg_h_sqrt_h: float | None = pydantic.Field(None, ge=0)
+    accel_rrw_ug_sqrt_h: float | None = pydantic.Field(None, ge=0)
+    gyro_bias_tau_s: float = pydantic.Field(300.0, gt=0)
+    accel_bias_tau_s: float = pydantic.Field(300.0, gt=0)
+
+
+class MeasurementSigmas(ParamsModel):
+    """Measurement noise overrides; None uses the message's own figure or the default."""
+
+    baro_m: float = pydantic.Field(1.0, gt=0)
+    mag_heading_deg: float = pydantic.Field(2.0, gt=0)
+    mag_T: float = pydantic.Field(1.0e-6, gt=0)
+    gnss_pos_m: float | None = pydantic.Field(None, gt=0)
+    gnss_vel_mps: float | None = pydantic.Field(None, gt=0)
+    position_fix_scale: float = pydantic.Field(1.0, gt=0)
+
+
+@register("navigator", "ins_ekf")
+class InsEkfNavigator(Navigator):
+    """Strapdown INS in WGS-84 with a 16-state error-state EKF (position, velocity, attitude,
+    gyro and accelerometer biases, barometer bias), aided by barometer, magnetometer, GNSS
+    (while it has a fix) and absolute position fixes (scene matching)."""
+
+    class Params(ParamsModel):
+        imu_preset: str = "paper"
+        imu: ImuNoiseParams = ImuNoiseParams()
+        initial_sigma: InitialSigmas = InitialSigmas()
+        meas_sigma: MeasurementSigmas = MeasurementSigmas()
+        gate_probability: float = pydantic.Field(0.999, gt=0.5, le=1.0)
+        cov_interval_s: float = pydantic.Field(0.05, ge=0.0, le=1.0)
+        baro_bias_rw_m_sqrt_s: float = pydantic.Field(0.01, ge=0.0)
+        use_gnss: bool = True
+        use_gnss_velocity: bool = True
+        use_baro: bool = True
+        use_mag: bool = True
+        mag_mode: Literal["heading", "vector"] = "heading"
+        use_position_fix: bool = True
+
+    def __init__(self, params: "InsEkfNavigator.Params", *, ctx: BuildContext):
+        self.params = params
+        self.ctx = ctx
+        try:
+            sheet = preset_datasheet(params.imu_preset)
+        except KeyError:
+            raise InputError(
+                f"navigator.params.imu_preset: unknown preset {params.imu_preset!r}; "
+                f"expected one of: {', '.join(preset_names())}"
+            ) from None
+        self.turn_on = (sheet.pop("gyro_turn_on_bias_deg_h"), sheet.pop("accel_turn_on_bias_ug"))
+        for key in sheet:
+            override = getattr(params.imu, key)
+            if override is not None:
+                sheet[key] = override
+        self.noise = imu_noise_from_datasheet(
+            **sheet, gyro_bias_tau_s=params.imu.gyro_bias_tau_s,
+            accel_bias_tau_s=params.imu.accel_bias_tau_s,
+        )
+        self.ekf = ErrorStateEKF(
+            self.noise, gate_probability=params.gate_probability,
+            cov_interval_s=params.cov_interval_s,
+            baro_bias_rw_m_sqrt_s=params.baro_bias_rw_m_sqrt_s, vehicle_id=ctx.vehicle_id,
+        )
+        self._mag_model: OnboardMagneticModel | None = None
+        self._airspeed: float | None = None
+        self._initialized = False
+
+    # ----------------------------------------------------------- Navigator API
+    def initialize(self, t_s: float, initial: NavEstimate) -> None:
+        o = self.ctx.origin
+        lat, lon, h = geodesy.ned_to_geodetic(np.asarray(initial.pos_ned_m, float),
+                                              o.lat_rad, o.lon_rad, o.alt_m)
+        P0 = self.initial_covariance()
+        # The initial estimate's own covariances win where it has them (e.g. a GNSS alignment).
+        R_no = meas.origin_rotation(float(lat), float(lon), o).T
+        for sl, cov, rot in ((IP, initial.cov_pos_ned_m2, R_no), (IV, initial.cov_vel_ned_m2s2, None),
+                             (IA, initial.cov_att_rad2, None)):
+            c = np.asarray(cov, float)
+            if c.shape == (3, 3) and np.all(np.isfinite(c)) and np.all(np.linalg.eigvalsh(0.5 * (c + c.T)) > 0):
+                P0[sl, sl] = rot @ c @ rot.T if rot is not None else c
+        self.ekf.initialize(t_s, float(lat), float(lon), float(h), initial.vel_ned_mps,
+                            initial.q_nb_wxyz, P0)
+        self._initialized = True
+
+    def initial_covariance(self) -> np.ndarray:
+        """P0 (16, 16) from Params.initial_sigma."""
+        s = self.params.initial_sigma
+        d = np.empty(N_STATES)
+        d[IP] = s.pos_m
+        d[IV] = s.vel_mps
+        d[IA] = [s.tilt_deg * DEG_TO_RAD] * 2 + [s.heading_deg * DEG_TO_RAD]
+        # A zero turn-on bias in a preset still leaves the in-run instability to cover.
+        gyro_deg_h = s.gyro_bias_deg_h or max(self.turn_on[0], self.noise.gyro_bias_sigma_rps * 3600.0 / DEG_TO_RAD)
+        accel_ug = s.accel_bias_ug or max(self.turn_on[1], self.noise.accel_bias_sigma_mps2 / 1e-6 / STANDARD_GRAVITY_MPS2)
+        d[IBG] = gyro_deg_h * DEG_TO_RAD / 3600.0
+        d[IBA] = accel_ug * 1e-6 * STANDARD_GRAVITY_MPS2
+        d[IBB] = s.baro_bias_m
+        return np.diag(d**2)
+
+    def predict(self, imu: ImuSample) -> None:
+        self._require_init()
+        self.ekf.propagate(float(imu.t_s), imu.omega_ib_b_rps, imu.f_ib_b_mps2)
+
+    def correct(self, measurement) -> CorrectionInfo | None:
+        self._require_init()
+        p, ekf = self.params, self.ekf
+        t = float(getattr(measurement, "t_s", ekf.t_s))
+        if isinstance(measurement, PositionFix):
+            if not p.use_position_fix:
+                return None
+            y, H, R = meas.position_ned(ekf, measurement.pos_ned_m,
+                                        np.asarray(measurement.cov_ned_m2) * p.meas_sigma.position_fix_scale**2,
+                                        self.ctx.origin)
+            return ekf.update(f"position_fix:{measurement.source}", t, y, H, R)
+        if isinstance(measurement, BaroSample):
+            if not p.use_baro:
+                return None
+            return ekf.update("baro", t, *meas.baro_altitude(ekf, measurement.altitude_m, p.meas_sigma.baro_m))
+        if isinstance(measurement, MagSample):
+            return self._correct_mag(measurement, t) if p.use_mag else None
+        if isinstance(measurement, GnssFix):
+            return self._correct_gnss(measurement, t) if p.use_gnss else None
+        if isinstance(measurement, AirspeedSample):
+            # Kept for the estimate (controllers fly airspeed); without a wind state it is
+            # not a useful constraint on ground velocity, so it is not fused.
+            self._airspeed = float(measurement.airspeed_mps)
+            return None
+        return None
+
+    def estimate(self) -> NavEstimate:
+        """Position in NED at the scenario origin (ctx.origin); velocity, attitude and their
+        covariances in the NED frame at the vehicle (as an INS and the JSBSim truth report
+        them; the two NED frames differ by ~1.6e-4 rad per km from the origin)."""
+        self._require_init()
+        ekf, o = self.ekf, self.ctx.origin
+        ekf.flush()
+        ins = ekf.ins
+        q = np.array(ins.q)
+        C = quat_to_dcm(q)
+        wie = geodesy.earth_rate_ned_rps(ins.lat_rad)
+        omega_b = np.asarray(ekf.omega_ib_b_rps, float) - C.T @ wie
+        R_on = meas.origin_rotation(ins.lat_rad, ins.lon_rad, o)
+        P = ekf.P
+        return NavEstimate(
+            t_s=ekf.t_s,
+            pos_ned_m=meas.nominal_pos_ned(ekf, o),
+            vel_ned_mps=np.array(ins.vel),
+            q_nb_wxyz=q,
+            rpy_rad=quat_to_euler(q),
+            omega_b_rps=omega_b,
+            cov_pos_ned_m2=R_on @ P[IP, IP] @ R_on.T,
+            cov_vel_ned_m2s2=P[IV, IV].copy(),
+            cov_att_rad2=P[IA, IA].copy(),
+            airspeed_mps=self._airspeed,
+        )
+
+    # ------------------------------------------------------------------ extras
+    def covariance(self) -> np.ndarray:
+        """Full error covariance (16, 16) in the filter's own frames (error_model layout)."""
+        return self.ekf.covariance()
+
+    def error_state(self, truth: TruthState, gyro_bias_rps=None, accel_bias_mps2=None) -> np.ndarray:
+        """True error (15,) of the current estimate (truth (-) estimate, error_model layout)."""
+        return error_state(self.ekf, truth, gyro_bias_rps, accel_bias_mps2)
+
+    def _correct_mag(self, m: MagSample, t: float) -> CorrectionInfo:
+        ekf, p = self.ekf, self.params
+        ins = ekf.ins
+        if self._mag_model is None:
+            self._mag_model = OnboardMagneticModel(self.ctx.epoch_utc_year)
+        B_n = self._mag_model.field_ned_T(ins.lat_rad, ins.lon_rad, ins.h_m)
+        if p.mag_mode == "vector":
+            return ekf.update("mag", t, *meas.mag_vector(ekf, m.field_b_T, B_n, p.meas_sigma.mag_T))
+        sigma = p.meas_sigma.mag_heading_deg * DEG_TO_RAD
+        return ekf.update("mag_heading", t, *meas.mag_heading(ekf, m.field_b_T, B_n, sigma))
+
+    def _correct_gnss(self, fix: GnssFix, t: float) -> CorrectionInfo:
+        ekf, s = self.ekf, self.params.meas_sigma
+        pos_sigma = np.full(3, s.gnss_pos_m) if s.gnss_pos_m else np.asarray(fix.pos_sigma_m, float)
+        y, H, R = meas.gnss_position(ekf, fix.lat_rad, fix.lon_rad, fix.alt_m, pos_sigma)
+        vel = np.asarray(fix.vel_ned_mps, float)
+        if self.params.use_gnss_velocity and vel.shape == (3,) and np.all(np.isfinite(vel)):
+            vel_sigma = np.full(3, s.gnss_vel_mps) if s.gnss_vel_mps else np.asarray(fix.vel_sigma_mps, float)
+            yv, Hv, Rv = meas.gnss_velocity(ekf, vel, vel_sigma)
+            y, H = np.concatenate([y, yv]), np.vstack([H, Hv])
+            R = np.block([[R, np.zeros((3, 3))], [np.zeros((3, 3)), Rv]])
+        return ekf.update("gnss", t, y, H, R)
+
+    def _require_init(self) -> None:
+        if not self._initialized:
+            raise RuntimeError("InsEkfNavigator used before initialize()")
+
