@@ -1,0 +1,70 @@
+"""Scenario loading: overrides address vehicles by id, ${VAR} expansion, one-line errors."""
+
+from pathlib import Path
+
+import pytest
+
+from testbench.config.loader import apply_override, load_scenario, parse_yaml
+from testbench.core.errors import InputError
+
+REPO = Path(__file__).resolve().parents[2]
+RACETRACK = REPO / "scenarios" / "fixedwing_racetrack.yaml"
+
+
+def test_override_addresses_vehicle_by_id_and_component_params():
+    loaded = load_scenario(RACETRACK, ["vehicles.uav0.mission.altitude_agl_m=300", "duration_s=12.5"])
+    assert loaded.scenario.duration_s == 12.5
+    assert loaded.scenario.vehicle("uav0").mission.params["altitude_agl_m"] == 300
+    assert loaded.data["vehicles"][0]["mission"]["params"]["altitude_agl_m"] == 300
+
+
+def test_override_sensor_by_name_and_index():
+    data = {"vehicles": [{"id": "a", "sensors": [{"type": "imu", "params": {}}, {"name": "cam", "type": "camera"}]}]}
+    apply_override(data, "vehicles.a.sensors.imu.preset=tactical", "x")
+    apply_override(data, "vehicles.0.sensors.cam.rate_hz=5", "x")
+    assert data["vehicles"][0]["sensors"][0]["params"]["preset"] == "tactical"
+    assert data["vehicles"][0]["sensors"][1]["params"]["rate_hz"] == 5
+
+
+def test_override_unknown_vehicle_names_the_choices():
+    with pytest.raises(InputError, match="no item 'uav9'.*uav0"):
+        load_scenario(RACETRACK, ["vehicles.uav9.mission.altitude_agl_m=300"])
+
+
+def test_env_expansion_and_unset_variable(tmp_path, monkeypatch):
+    text = RACETRACK.read_text().replace("world:\n", "world:\n  imagery: ${TB_TEST_MAPS}/map.tif\n", 1)
+    p = tmp_path / "s.yaml"
+    p.write_text(text)
+    monkeypatch.setenv("TB_TEST_MAPS", "/data/maps")
+    assert load_scenario(p).scenario.world.imagery == "/data/maps/map.tif"
+    monkeypatch.delenv("TB_TEST_MAPS")
+    with pytest.raises(InputError, match=r"world.imagery: environment variable \$\{TB_TEST_MAPS\} is not set"):
+        load_scenario(p)
+
+
+@pytest.mark.parametrize(
+    "override, message",
+    [
+        ("vehicles.uav0.initial.altitude_ft=800", r"vehicles\[uav0\]\.initial\.altitude_ft: unknown key"),
+        ("duration_s='10 min'", r"duration_s: .*write a plain number in seconds"),
+        ("vehicles.uav0.aircraft=no_such_plane", r"unknown aircraft 'no_such_plane'; available: .*tb_fixedwing"),
+        ("vehicles.uav0.control.no_such_gain=1", r"vehicles\[uav0\]\.control\.params\.no_such_gain: unknown key"),
+        ("vehicles.uav0.sensors.ideal_state.rate_hz=7", r"7 Hz .*divide"),
+    ],
+)
+def test_bad_input_messages(override, message):
+    with pytest.raises(InputError, match=message):
+        loaded = load_scenario(RACETRACK, [override])
+        from testbench.sim.runner import build_engine
+
+        build_engine(loaded)
+
+
+def test_yaml_syntax_error_gives_line_and_column():
+    with pytest.raises(InputError, match=r"bad.yaml: YAML syntax error at line 2, column 9: mapping values"):
+        parse_yaml("name: x\nworld: a: b\n", "bad.yaml")
+
+
+def test_missing_file():
+    with pytest.raises(InputError, match="scenario file not found"):
+        load_scenario("/nonexistent/dir/s.yaml")

@@ -1,0 +1,32 @@
+"""Shared fixtures: the repository root, the real-data folder (TESTBENCH_DATA) and a clean
+scenario-path helper."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+SCENARIOS = REPO / "scenarios"
+
+
+def data_dir() -> Path | None:
+    """The real geodata folder from TESTBENCH_DATA, or None when unset or absent."""
+    env = os.environ.get("TESTBENCH_DATA")
+    if not env:
+        return None
+    p = Path(env)
+    if not p.is_absolute():
+        p = (REPO / p).resolve()
+    return p if p.is_dir() else None
+
+
+@pytest.fixture
+def realdata() -> Path:
+    """Skip (with the reason) unless the real geodata of ../shared/data is available."""
+    d = data_dir()
+    if d is None:
+        pytest.skip("real geodata not available: set TESTBENCH_DATA to the shared data folder (e.g. ../shared/data)")
+    return d
