@@ -2,7 +2,7 @@
 
     from testbench.scoring import score_run, check_thresholds, write_metrics_json
     result = score_run(run_dir)                      # MetricsResult (typed tree)
-    thr = check_thresholds(result.flat(), thresholds)  # ThresholdResult
+    thr = check_thresholds(result.flatten(), thresholds)  # ThresholdResult
     write_metrics_json(run_dir, result, thr)          # DIR/metrics.json
 
 User metrics: `@register_metric("name")` on a function RunRecord -> dict of floats.

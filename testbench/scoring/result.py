@@ -214,9 +214,11 @@ class MetricsResult(_Section):
             out[name] = _convert(values)
         return out
 
-    def flat(self) -> dict[str, Any]:
-        """Dotted-key view of to_dict() (see flatten)."""
+    def flatten(self) -> dict[str, Any]:
+        """Dotted-key view of to_dict(): {"nav.horizontal_error_m.rms": 3.2, ...}."""
         return flatten(self.to_dict())
+
+    flat = flatten
 
 
 def flatten(nested: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:

@@ -3,7 +3,7 @@
 The lead's `testbench run` calls, after the recorder has closed its files:
 
     result = score_run(run_dir)
-    thr = check_thresholds(result.flat(), record_thresholds)      # or let write_metrics_json do it
+    thr = check_thresholds(result.flatten(), record_thresholds)      # or let write_metrics_json do it
     write_metrics_json(run_dir, result, thr)
 """
 
@@ -95,9 +95,9 @@ def write_metrics_json(
     if thresholds is None:
         info_path = run_dir / "run.json"
         spec = json.loads(info_path.read_text()).get("thresholds") if info_path.is_file() else None
-        thresholds = check_thresholds(result.flat(), spec or {})
+        thresholds = check_thresholds(result.flatten(), spec or {})
     elif not isinstance(thresholds, ThresholdResult):
-        thresholds = check_thresholds(result.flat(), thresholds)
+        thresholds = check_thresholds(result.flatten(), thresholds)
     doc = result.to_dict()
     doc["thresholds"] = thresholds.to_dict()
     path = run_dir / "metrics.json"
@@ -112,6 +112,6 @@ def score_and_write(run_dir: str | Path) -> tuple[MetricsResult, ThresholdResult
     """Score DIR, check run.json thresholds, write metrics.json; returns both results."""
     record = load_run(run_dir)
     result = score_record(record)
-    thr = check_thresholds(result.flat(), record.thresholds)
+    thr = check_thresholds(result.flatten(), record.thresholds)
     write_metrics_json(run_dir, result, thr)
     return result, thr

@@ -64,7 +64,7 @@ def validate_thresholds(thresholds: Mapping[str, Any], where: str = "thresholds"
 def check_thresholds(metrics_flat: Mapping[str, Any], thresholds: Mapping[str, Any]) -> ThresholdResult:
     """Check every threshold against the flat (dotted-key) metrics.
 
-    metrics_flat: e.g. MetricsResult.flat(); thresholds: {"dotted.key": {"min"/"max": bound}}.
+    metrics_flat: e.g. MetricsResult.flatten(); thresholds: {"dotted.key": {"min"/"max": bound}}.
     Bounds are inclusive (value == max passes).
     """
     spec = validate_thresholds(thresholds)

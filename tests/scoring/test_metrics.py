@@ -1,0 +1,177 @@
+import numpy as np
+import pandas as pd
+import pytest
+
+from conftest import record_of, straight_telemetry
+from testbench.scoring import score_record
+from testbench.scoring.metrics_control import compute_control, cross_track_m
+from testbench.scoring.metrics_nav import compute_nav, position_nees
+from testbench.scoring.phases import event_turning, turn_rate_rps
+
+
+def test_constant_error_gives_exact_nav_figures():
+    tel = straight_telemetry(err_ned=(3.0, 4.0, 12.0))
+    nav = compute_nav(record_of(tel))
+    for s in (nav.position_error_m,):
+        assert (s.mean, s.rms, s.p95, s.max) == pytest.approx((13.0,) * 4)
+    h = nav.horizontal_error_m
+    assert (h.mean, h.rms, h.max, h.cep50, h.cep95) == pytest.approx((5.0,) * 5)
+    assert nav.vertical_error_m.rms == pytest.approx(12.0)
+    assert nav.horizontal_error_pct_agl.mean == pytest.approx(5.0)  # 5 m at 100 m AGL
+    assert nav.turning is None and nav.smooth.horizontal_error_m.n == len(tel)
+
+
+def test_nan_estimate_rows_are_dropped():
+    tel = straight_telemetry(n=10, err_ned=(1.0, 0.0, 0.0))
+    tel.loc[:3, "nav_north_m"] = np.nan
+    nav = compute_nav(record_of(tel))
+    assert nav.position_error_m.n == 6 and nav.horizontal_error_m.n == 6
+    assert nav.position_error_m.max == pytest.approx(1.0)
+
+
+def test_denied_subset_from_gnss_column_and_from_windows():
+    n = 100
+    tel = straight_telemetry(n=n, err_ned=(0.0, 0.0, 0.0))
+    err = np.where(np.arange(n) >= 50, 10.0, 1.0)
+    tel["nav_east_m"] = tel["truth_east_m"] + err
+    tel["gnss_available"] = np.arange(n) < 50
+    nav = compute_nav(record_of(tel))
+    assert nav.denied.horizontal_error_m.mean == pytest.approx(10.0)
+    assert nav.denied.duration_s == pytest.approx(5.0)
+    no_col = tel.drop(columns="gnss_available")
+    nav2 = compute_nav(record_of(no_col, gnss_denied_windows={"a": [[5.0, 100.0]]}))
+    assert nav2.denied.horizontal_error_m.mean == pytest.approx(10.0)
+
+
+def test_position_nees_with_correlated_covariance(rng):
+    n = 40_000
+    P_h = np.array([[4.0, 1.8], [1.8, 2.25]])
+    L = np.linalg.cholesky(P_h)
+    e_h = rng.standard_normal((n, 2)) @ L.T
+    e_d = 3.0 * rng.standard_normal(n)
+    tel = straight_telemetry(n=n, dt=0.01, err_ned=(0, 0, 0))
+    tel["nav_north_m"] += e_h[:, 0]
+    tel["nav_east_m"] += e_h[:, 1]
+    tel["nav_down_m"] += e_d
+    tel["nav_sigma_north_m"] = 2.0
+    tel["nav_sigma_east_m"] = 1.5
+    tel["nav_sigma_down_m"] = 3.0
+    tel["nav_cov_ne_m2"] = 1.8
+    nees = compute_nav(record_of(tel)).nees["position"]
+    assert nees.mean == pytest.approx(3.0, rel=0.03)
+    assert nees.frac_in_95 == pytest.approx(0.95, abs=0.006)
+    # Ignoring the correlation would bias NEES: the closed form must use the full 2x2 block.
+    direct = np.einsum("ni,ij,nj->n", e_h, np.linalg.inv(P_h), e_h) + (e_d / 3.0) ** 2
+    assert np.allclose(position_nees(tel), direct)
+    tel["nav_cov_ne_m2"] = 0.0
+    assert not np.allclose(position_nees(tel), direct)
+
+
+def test_cross_track_geometry():
+    # Line from (0,0) heading north-east; a point 10 m to its right (south-east of it).
+    d = 10.0 / np.sqrt(2)
+    assert cross_track_m(100 - d, 100 + d, 0, 0, 200, 200) == pytest.approx(10.0)
+    assert cross_track_m(100 + d, 100 - d, 0, 0, 200, 200) == pytest.approx(-10.0)
+    assert cross_track_m(3.0, 4.0, 0, 0, 0, 0) == pytest.approx(5.0)  # degenerate line
+
+
+def test_control_metrics():
+    n = 50
+    tel = straight_telemetry(n=n)
+    tel["truth_east_m"] = 2.0  # 2 m right of a northbound line at east = 0
+    tel["gd_on_leg"] = np.arange(n) < 40
+    tel["gd_line_start_n_m"], tel["gd_line_start_e_m"] = 0.0, 0.0
+    tel["gd_line_end_n_m"], tel["gd_line_end_e_m"] = 1000.0, 0.0
+    tel["gd_alt_cmd_m"] = 97.0  # truth flies at 100 m
+    tel["truth_airspeed_mps"] = 21.0
+    tel["gd_airspeed_cmd_mps"] = 20.0
+    tel["truth_roll_rad"] = np.deg2rad(np.linspace(-30, 5, n))
+    c = compute_control(record_of(tel))
+    assert c.cross_track_error_m.rms == pytest.approx(2.0) and c.cross_track_error_m.n == 40
+    assert c.altitude_error_m.max == pytest.approx(3.0) and c.altitude_error_m.n == n
+    assert c.airspeed_error_mps.rms == pytest.approx(1.0)
+    assert c.bank_max_deg == pytest.approx(30.0)
+
+
+def test_turn_rate_from_body_rates_matches_yaw_derivative():
+    # Coordinated turn at 20 deg bank, 5 deg pitch, yaw rate 0.1 rad/s.
+    t = np.arange(0, 20, 0.01)
+    roll, pitch, psi_dot = np.deg2rad(20), np.deg2rad(5), 0.1
+    yaw = psi_dot * t
+    # Body rates of Euler rates (0, 0, psi_dot): q = psi_dot sin(phi) cos(theta), r = psi_dot cos(phi) cos(theta).
+    tel = pd.DataFrame({"t_s": t, "truth_roll_rad": roll, "truth_pitch_rad": pitch, "truth_yaw_rad": np.angle(np.exp(1j * yaw)),
+                        "truth_q_rps": psi_dot * np.sin(roll) * np.cos(pitch), "truth_r_rps": psi_dot * np.cos(roll) * np.cos(pitch)})
+    assert np.allclose(turn_rate_rps(tel), psi_dot)
+    no_rates = tel.drop(columns=["truth_q_rps", "truth_r_rps"])
+    assert np.allclose(turn_rate_rps(no_rates), psi_dot, atol=1e-9)
+
+
+def test_phase_of_events_uses_bank_and_turn_rate():
+    tel = straight_telemetry(n=100)
+    tel["truth_r_rps"] = np.where(tel["t_s"] > 5.0, np.deg2rad(5.0), 0.0)  # flat turn after 5 s
+    ev = pd.DataFrame({"t_s": [1.0, 2.0, 8.0], "vehicle_id": ["a"] * 3, "truth_roll_rad": [0.0, np.deg2rad(15), 0.0]})
+    rec = record_of(tel, phases={"turn_bank_deg": 10.0, "turn_rate_deg_s": 3.0})
+    assert event_turning(rec, ev).tolist() == [False, True, True]
+
+
+def _ismn_table():
+    return pd.DataFrame({
+        "t_s": [1.0, 2.0, 3.0, 4.0, 5.0], "vehicle_id": ["a"] * 5,
+        "attempted": [True] * 5, "fix": [True, True, True, False, True], "accepted": [True, False, True, False, True],
+        "fix_north_m": [23.0, 40.0, 60.0, np.nan, 100.0 + 30.0], "fix_east_m": [4.0, 0.0, 0.0, np.nan, 40.0],
+        "truth_north_m": [20.0, 40.0, 60.0, 80.0, 100.0], "truth_east_m": [0.0] * 5,
+        "latency_ms": [10.0, 20.0, 30.0, 40.0, 50.0], "truth_roll_rad": [0, 0, 0, 0, np.deg2rad(30)],
+        "truth_height_agl_m": [100.0] * 5,
+    })
+
+
+def test_ismn_rates_and_phases():
+    rec = record_of(straight_telemetry(n=100), {"ismn": _ismn_table()})
+    m = score_record(rec, metrics=[]).ismn
+    assert (m.attempts, m.fixes, m.accepted) == (5, 4, 3)
+    assert m.fix_rate == pytest.approx(0.8) and m.accept_rate == pytest.approx(0.75)
+    assert m.latency_ms.mean == pytest.approx(30.0)
+    assert m.all.count == 4 and m.smooth.count == 3 and m.turning.count == 1
+    assert m.smooth.horizontal_error_m.max == pytest.approx(5.0)
+    assert m.turning.horizontal_error_m.mean == pytest.approx(50.0)
+    assert m.turning.horizontal_error_pct_agl.mean == pytest.approx(50.0)
+
+
+def test_relnav_and_formation_and_vehicles():
+    tel = pd.concat([straight_telemetry(n=20, vehicle_id="a"), straight_telemetry(n=20, vehicle_id="b")]).sort_values("t_s", kind="stable")
+    rel = pd.DataFrame({"t_s": [0.0, 0.0, 1.0], "vehicle_id": ["a", "b", "a"], "peer_id": ["b", "a", "b"],
+                        "est_north_m": [1.0, 0.0, 0.0], "est_east_m": [0.0, 2.0, 0.0], "est_down_m": [0.0, 0.0, 0.0],
+                        "truth_north_m": [0.0] * 3, "truth_east_m": [0.0] * 3, "truth_down_m": [0.0, 0.0, 3.0],
+                        "sigma_m": [1.0, 0.5, 1.0], "id_correct": [True, True, False]})
+    frm = pd.DataFrame({"t_s": [0.0, 1.0], "vehicle_id": ["b", "b"], "slot_error_north_m": [3.0, 0.0],
+                        "slot_error_east_m": [4.0, 0.0], "slot_error_down_m": [0.0, 1.0]})
+    res = score_record(record_of(tel, {"relnav": rel, "formation": frm}, vehicles=[{"id": "a"}, {"id": "b"}]), metrics=[])
+    assert res.relnav.error_m.max == pytest.approx(3.0)
+    assert res.relnav.id_correct_rate == pytest.approx(2 / 3)
+    assert res.relnav.within_3sigma_rate == pytest.approx(2 / 3)  # 2 m > 3 * 0.5 m
+    assert res.relnav.pairs["a_to_b"].error_m.rms == pytest.approx(np.sqrt(5.0))
+    assert res.relnav.pairs["b_to_a"].error_m.max == pytest.approx(2.0)
+    assert res.formation.error_m.max == pytest.approx(5.0)
+    assert res.formation.horizontal_error_m.max == pytest.approx(5.0)
+    flat = res.flatten()
+    assert flat["vehicles.a.relnav.error_m.max"] == pytest.approx(3.0)
+    assert "vehicles.a.formation.error_m.max" not in flat
+    assert flat["vehicles.b.formation.error_m.rms"] == pytest.approx(np.sqrt(13.0))
+    assert flat["nav.position_error_m.rms"] == pytest.approx(13.0)
+    assert flat["real_time_factor"] == 2.0
+    assert not any(k.startswith("ismn.") for k in flat)  # no table -> no keys
+
+
+def test_synthetic_run_is_consistent_and_deterministic(tmp_path):
+    from testbench.scoring import score_run
+    from testbench.scoring.synthetic import make_synthetic_run
+
+    a = make_synthetic_run(tmp_path / "a", np.random.default_rng(3), n_vehicles=2, duration_s=60, with_images=False)
+    b = make_synthetic_run(tmp_path / "b", np.random.default_rng(3), n_vehicles=2, duration_s=60, with_images=False)
+    fa, fb = score_run(a).flatten(), score_run(b).flatten()
+    assert fa == fb
+    assert all(np.isfinite(v) for v in fa.values() if isinstance(v, float))
+    # Errors were drawn from the reported covariance, so NEES is consistent.
+    assert 0.85 < fa["nav.nees.position.frac_in_95"] < 1.0
+    assert fa["ismn.turning.horizontal_error_m.mean"] > fa["ismn.smooth.horizontal_error_m.mean"]
+
