@@ -33,7 +33,8 @@ def isa_altitude_m(pressure_pa):
 
 def isa_pressure_pa(altitude_m):
     """ISA static pressure (Pa) at pressure altitude (m), the inverse of isa_altitude_m."""
-    return P0_PA * (1.0 - LAPSE_K_PER_M * np.asarray(altitude_m, float) / T0_K) ** (1.0 / _EXP)
+    base = np.maximum(1.0 - LAPSE_K_PER_M * np.asarray(altitude_m, float) / T0_K, 0.0)
+    return P0_PA * base ** (1.0 / _EXP)
 
 
 class BarometerParams(ParamsModel):

@@ -204,8 +204,6 @@ def render_plane(camera: PinholeCamera, centre_ned_m, R_nc, pyr: RasterPyramid,
             with np.errstate(all="ignore"):
                 rng_m = np.where(d[..., 2] > view.w_far, view.h_m / d[..., 2] * norm, opts.far_m * 10)
             alpha = haze_alpha(np.minimum(rng_m, 1e9), opts.haze_visibility_m)
-        rgb = apply_sky_and_haze(rgb, sky, ground, elev.astype(np.float32), alpha, COARSE_PX, opts)
-    offmap = ground & ~has_data
-    if offmap.any():
-        rgb[offmap] = 0
+        # Haze only on pixels with data: no-data stays black.
+        rgb = apply_sky_and_haze(rgb, sky, valid, elev.astype(np.float32), alpha, COARSE_PX, opts)
     return rgb, valid, sky, view

@@ -1,0 +1,167 @@
+"""Other vehicles as small shaded 3D shapes with LED markers, and their truth in the frame.
+
+Shapes are lists of planar faces in body FRD coordinates scaled by the vehicle's size; each
+face is projected through the full camera model (lens distortion included, through
+cv2.projectPoints), shaded by a fixed sun (Lambert plus ambient), culled when it faces away,
+and drawn far-to-near (painter's order over all vehicles) as an anti-aliased filled polygon.
+LEDs are discs at known body positions drawn bright when on and as dark lenses when off.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from typing import Callable, Sequence
+
+import cv2
+import numpy as np
+
+from testbench.core.camera_geometry import PinholeCamera
+from testbench.sensors.camera.lens import project_points
+from testbench.sensors.camera.types import VehicleAppearance, VehicleTruth
+
+# Unit vector towards the sun in NED: azimuth 135 deg (south-east), elevation 50 deg.
+_SUN_NED = np.array([np.cos(np.radians(50)) * np.cos(np.radians(135)),
+                     np.cos(np.radians(50)) * np.sin(np.radians(135)), -np.sin(np.radians(50))])
+_SHIFT = 4  # sub-pixel bits for cv2 drawing
+_LED_OFF_RGB = (35, 35, 38)
+
+
+def _box(centre, half, yaw_rad: float = 0.0, shade: float = 1.0):
+    """Six outward-facing quads of a box (body axes), optionally yawed about body z."""
+    c = np.asarray(centre, float)
+    hx, hy, hz = half
+    cy, sy = np.cos(yaw_rad), np.sin(yaw_rad)
+    R = np.array([[cy, -sy, 0.0], [sy, cy, 0.0], [0.0, 0.0, 1.0]])
+    signs = np.array([[-1, -1, -1], [1, -1, -1], [1, 1, -1], [-1, 1, -1],
+                      [-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]], float)
+    v = c + (signs * [hx, hy, hz]) @ R.T
+    quads = [(0, 3, 2, 1), (4, 5, 6, 7), (0, 1, 5, 4), (2, 3, 7, 6), (1, 2, 6, 5), (0, 4, 7, 3)]
+    faces = []
+    for q in quads:
+        pts = v[list(q)]
+        n = np.cross(pts[1] - pts[0], pts[2] - pts[0])
+        if np.dot(n, pts.mean(axis=0) - c) < 0:
+            n = -n
+        faces.append((pts, n / np.linalg.norm(n), shade, True))
+    return faces
+
+
+def _disc(centre, radius: float, shade: float, n_sides: int = 12):
+    """A horizontal disc (rotor), visible from both sides."""
+    a = np.linspace(0, 2 * np.pi, n_sides, endpoint=False)
+    pts = np.asarray(centre, float) + radius * np.stack([np.cos(a), np.sin(a), 0 * a], axis=1)
+    return [(pts, np.array([0.0, 0.0, -1.0]), shade, False)]
+
+
+@lru_cache(maxsize=32)
+def shape_faces(kind: str, size_m: float):
+    """Faces (vertices (n, 3) body m, outward normal (3,), shade factor, one-sided) of a shape."""
+    s = float(size_m)
+    if kind == "quad":
+        arm = 0.33 * s
+        faces = _box((0, 0, 0), (0.12 * s, 0.09 * s, 0.05 * s))
+        for ang in (45.0, 135.0, 225.0, 315.0):
+            a = np.radians(ang)
+            mid = 0.5 * arm * np.array([np.cos(a), np.sin(a), 0.0])
+            faces += _box(mid, (0.5 * arm, 0.02 * s, 0.015 * s), yaw_rad=a)
+            tip = arm * np.array([np.cos(a), np.sin(a), 0.0])
+            faces += _box(tip + [0, 0, -0.03 * s], (0.025 * s, 0.025 * s, 0.03 * s), shade=0.5)
+            faces += _disc(tip + [0, 0, -0.065 * s], 0.16 * s, 0.35)
+        return tuple(faces)
+    if kind == "fixed_wing":
+        faces = _box((0.02 * s, 0, 0), (0.28 * s, 0.04 * s, 0.045 * s))
+        faces += _box((0.05 * s, 0, -0.05 * s), (0.07 * s, 0.5 * s, 0.008 * s))
+        faces += _box((-0.25 * s, 0, -0.02 * s), (0.045 * s, 0.16 * s, 0.006 * s))
+        faces += _box((-0.25 * s, 0, -0.1 * s), (0.05 * s, 0.006 * s, 0.06 * s))
+        return tuple(faces)
+    if kind == "box":
+        return tuple(_box((0, 0, 0), (0.5 * s, 0.5 * s, 0.5 * s)))
+    raise ValueError(f"vehicle shape must be quad, fixed_wing or box (got {kind!r})")
+
+
+def draw_vehicles(img: np.ndarray, camera: PinholeCamera, roi_origin: tuple[int, int],
+                  centre_ned_m, R_nc, vehicles: Sequence[VehicleAppearance], near_m: float,
+                  far_m: float, ground_depth: Callable[[float, float], float] | None) -> tuple[VehicleTruth, ...]:
+    """Draw `vehicles` into `img` (the rendered region, top-left at full-frame pixel
+    roi_origin) and return their truth in full-frame pixel coordinates.
+
+    camera: the full-frame camera; ground_depth(u, v): camera depth of the terrain seen at a
+    full-frame pixel (inf where sky), used to hide vehicles behind terrain.
+    """
+    C = np.asarray(centre_ned_m, float)
+    R_nc = np.asarray(R_nc, float)
+    W, H = camera.width_px, camera.height_px
+    f = 0.5 * (camera.fx + camera.fy)
+    ou, ov = roi_origin
+    items = []  # (depth, kind, payload)
+    truths = []
+    for veh in vehicles:
+        p = np.asarray(veh.pos_ned_m, float)
+        R_nb = np.asarray(veh.R_nb, float)
+        faces = shape_faces(veh.shape, float(veh.size_m))
+        verts_b = np.concatenate([fv for fv, _, _, _ in faces])
+        verts_n = p + verts_b @ R_nb.T
+        uv_all, z_all = project_points(camera, C, R_nc, np.vstack([verts_n, p[None, :]]))
+        uv, z = uv_all[:-1], z_all[:-1]
+        centre_uv, centre_z = uv_all[-1], z_all[-1]
+        rng_m = float(np.linalg.norm(p - C))
+        in_front = bool((z > near_m).all()) and centre_z <= far_m
+        leds_b = np.asarray(veh.led_positions_b_m, float).reshape(-1, 3)
+        leds_n = p + leds_b @ R_nb.T
+        led_uv, led_z = project_points(camera, C, R_nc, leds_n)
+        led_in = tuple(bool(zz > near_m and -0.5 <= uu < W - 0.5 and -0.5 <= vv < H - 0.5)
+                       for (uu, vv), zz in zip(led_uv, led_z))
+        bbox = (0.0, 0.0, 0.0, 0.0)
+        visible = False
+        if in_front:
+            u0, v0 = np.clip(uv.min(axis=0), [-0.5, -0.5], [W - 0.5, H - 0.5])
+            u1, v1 = np.clip(uv.max(axis=0), [-0.5, -0.5], [W - 0.5, H - 0.5])
+            if u1 > u0 and v1 > v0:
+                bbox = (float(u0), float(v0), float(u1), float(v1))
+                visible = True
+                if ground_depth is not None:
+                    cu = float(np.clip(centre_uv[0], 0, W - 1))
+                    cv_ = float(np.clip(centre_uv[1], 0, H - 1))
+                    visible = centre_z < ground_depth(cu, cv_)
+        truths.append(VehicleTruth(veh.id, bbox, centre_uv.copy(), led_uv.reshape(-1, 2).copy(),
+                                   tuple(bool(x) for x in veh.led_on), led_in, visible, rng_m))
+        if not visible:
+            continue
+        start = 0
+        for fv, n_b, shade, one_sided in faces:
+            m = len(fv)
+            fu, fz = uv[start : start + m], z[start : start + m]
+            centre_n = p + fv.mean(axis=0) @ R_nb.T
+            start += m
+            n_n = R_nb @ n_b
+            if one_sided and np.dot(n_n, centre_n - C) >= 0:
+                continue
+            light = 0.45 + 0.55 * max(0.0, float(np.dot(n_n if one_sided else np.sign(
+                -np.dot(n_n, centre_n - C)) * n_n, _SUN_NED)))
+            col = tuple(float(min(255.0, c * light * shade)) for c in veh.colour_rgb)
+            items.append((float(fz.mean()), 0, (fu, col)))
+        for i, ((lu, lv), lz) in enumerate(zip(led_uv, led_z)):
+            if lz <= near_m:
+                continue
+            on = bool(veh.led_on[i]) if i < len(veh.led_on) else False
+            colour = veh.led_colours[i] if i < len(veh.led_colours) else (255, 255, 255)
+            r_px = max(0.9, veh.led_radius_m * f / lz)
+            items.append((float(lz) - 1e-3 * veh.size_m, 1, ((lu, lv), r_px, on, colour)))
+    items.sort(key=lambda it: -it[0])
+    scale = 1 << _SHIFT
+    for _, kind, payload in items:
+        if kind == 0:
+            fu, col = payload
+            pts = np.round((fu - [ou, ov]) * scale).astype(np.int32)
+            cv2.fillPoly(img, [pts], col, lineType=cv2.LINE_AA, shift=_SHIFT)
+        else:
+            (lu, lv), r_px, on, colour = payload
+            c = (int(round((lu - ou) * scale)), int(round((lv - ov) * scale)))
+            if on:
+                glow = tuple(float(0.6 * x + 0.4 * 255) for x in colour)
+                core = tuple(float(0.35 * x + 0.65 * 255) for x in colour)
+                cv2.circle(img, c, int(round(2.2 * r_px * scale)), glow, -1, cv2.LINE_AA, _SHIFT)
+                cv2.circle(img, c, int(round(r_px * scale)), core, -1, cv2.LINE_AA, _SHIFT)
+            else:
+                cv2.circle(img, c, int(round(r_px * scale)), _LED_OFF_RGB, -1, cv2.LINE_AA, _SHIFT)
+    return tuple(truths)
