@@ -1,0 +1,202 @@
+"""The ISMN pipeline: search window -> inertial-aided orthorectification -> registration ->
+pose -> position fix (paper section 2.1; DESIGN.md eq. 3-10).
+
+    pipe = IsmnPipeline(camera, mount, reference_map, elevation, matcher, params)
+    fix, diag = pipe.process(frame_image, t_s, estimate)
+
+reference_map / elevation: anything with read_local(north_min, north_max, east_min, east_max,
+gsd_m) -> LocalRaster (testbench.world MapSource, or synth.RasterMapSource over an in-memory
+LocalRaster). The fix goes to the EKF, which gates it; this module reports quality.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from typing import Literal
+
+import cv2
+import numpy as np
+
+from testbench.core.camera_geometry import CameraMount, PinholeCamera, camera_pose_ned
+from testbench.core.messages import NavEstimate, PositionFix
+from testbench.core.registry import ParamsModel
+from testbench.navigation.ismn.area import NccMatcher
+from testbench.navigation.ismn.geometry import estimate_pose, footprint_bounds, nadir_gsd_m, predict_search_window
+from testbench.navigation.ismn.ortho import Orthorectifier, to_grey_u8
+from testbench.navigation.ismn.pose import solve_camera_pose
+from testbench.navigation.ismn.types import IsmnDiagnostics, MatchPrior
+
+log = logging.getLogger(__name__)
+
+
+class IsmnParams(ParamsModel):
+    """Settings of the ISMN pipeline (metres, degrees at the edge)."""
+
+    gsd_m: float | None = None  # working ground sample; None: the map's own (or the camera's, if coarser)
+    max_ortho_px: int = 2048  # the ortho frame's larger side is at most this (coarsens gsd)
+    n_sigma: float = 3.0  # window = footprint + n_sigma * position sigma + margin
+    margin_m: float = 20.0
+    max_off_nadir_deg: float = 70.0  # ground farther from nadir than this is not used
+    terrain_height_m: float = 0.0  # flat ground height above the origin without elevation
+    relief_min_span_m: float = 5.0  # per-pixel relief when the footprint's height span exceeds this
+    elevation_gsd_m: float = 30.0
+    min_quality: float = 0.15  # below: no fix
+    min_correspondences: int = 6
+    pose_method: Literal["map", "opencv"] = "map"
+    use_attitude_prior: bool = True  # MAP pose with the INS attitude covariance as prior
+    sigma_floor_m: float = 1.0  # floor of the horizontal sigma (map georeference, model errors)
+    sigma_img_px: float = 0.5  # image-side noise of a correspondence (full-resolution px)
+    max_jump_factor: float = 1.5  # reject fixes farther from the estimate than this x window margin
+    thumb_px: int = 320  # width of the frame thumbnail kept in the diagnostics
+    keep_images: bool = True  # keep ortho / map window / thumbnail in the diagnostics
+
+
+class IsmnPipeline:
+    """One camera's scene-matching position fixes against an onboard reference map."""
+
+    Params = IsmnParams
+
+    def __init__(self, camera: PinholeCamera, mount: CameraMount, reference_map, elevation=None,
+                 matcher=None, params: IsmnParams | None = None):
+        self.camera = camera
+        self.mount = mount
+        self.reference_map = reference_map
+        self.elevation = elevation
+        self.matcher = matcher if matcher is not None else NccMatcher()
+        self.p = params if params is not None else IsmnParams()
+        self.ortho = Orthorectifier(camera, math.radians(self.p.max_off_nadir_deg))
+
+    # -- helpers -------------------------------------------------------------------------------
+    def _ground(self, centre, R_nc):
+        """(ground_down_m, height_fn or None) under the predicted footprint."""
+        flat = -self.p.terrain_height_m
+        if self.elevation is None:
+            return flat, None
+        fp = footprint_bounds(centre, R_nc, self.camera, flat, self.ortho.max_off_nadir_rad)
+        if fp is None:
+            return flat, None
+        pad = 2 * self.p.elevation_gsd_m + 3 * self.p.margin_m
+        e = self.elevation.read_local(fp[0] - pad, fp[1] + pad, fp[2] - pad, fp[3] + pad, self.p.elevation_gsd_m)
+        if not e.valid.any():
+            return flat, None
+        h = e.data.astype(np.float32)
+        mean_h = float(h[e.valid].mean())
+        if float(h[e.valid].max() - h[e.valid].min()) < self.p.relief_min_span_m:
+            return -mean_h, None
+        filled = np.where(e.valid, h, np.float32(mean_h)).astype(np.float32)
+
+        def height_fn(north, east):
+            """NED down (m) of the terrain at (north, east), bilinear."""
+            r, c = e.ne_to_rowcol(north, east)
+            v = cv2.remap(filled, np.asarray(c, np.float32).reshape(-1, 1), np.asarray(r, np.float32).reshape(-1, 1),
+                          cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+            return -v.reshape(np.shape(north)).astype(float)
+
+        return -mean_h, height_fn
+
+    def _gsd(self, height_m: float, fp) -> float:
+        g = self.p.gsd_m or getattr(self.reference_map, "gsd_m", None) or nadir_gsd_m(self.camera, height_m)
+        g = max(float(g), nadir_gsd_m(self.camera, height_m) if self.p.gsd_m is None else 0.0)
+        extent = max(fp[1] - fp[0], fp[3] - fp[2])
+        return max(g, extent / self.p.max_ortho_px)
+
+    # -- the pipeline --------------------------------------------------------------------------
+    def process(self, frame_image: np.ndarray, t_s: float, estimate: NavEstimate) -> tuple[PositionFix | None, IsmnDiagnostics]:
+        """One frame -> (PositionFix or None, IsmnDiagnostics). frame_image (H, W[, 3]) uint8."""
+        lat = {}
+        t0 = time.perf_counter()
+        p = self.p
+        pos, R_nb = estimate_pose(estimate)
+        centre, R_nc = camera_pose_ned(pos, R_nb, self.mount)
+        ground_down, height_fn = self._ground(centre, R_nc)
+        height = ground_down - centre[2]
+        fp = footprint_bounds(centre, R_nc, self.camera, ground_down, self.ortho.max_off_nadir_rad)
+
+        def fail(reason, **kw):
+            lat["total"] = sum(lat.values())
+            return None, IsmnDiagnostics(t_s, dict(lat), reason=reason, **kw)
+
+        if height <= 0 or fp is None:
+            lat["window"] = 1e3 * (time.perf_counter() - t0)
+            return fail("camera sees no ground")
+        g = self._gsd(height, fp)
+        win = predict_search_window(estimate, self.camera, self.mount, ground_down, g, n_sigma=p.n_sigma,
+                                    margin_m=p.margin_m, max_off_nadir_rad=self.ortho.max_off_nadir_rad)
+        b = win.bounds_ne_m
+        mapw = self.reference_map.read_local(b[0], b[1], b[2], b[3], g)
+        g = mapw.gsd_m
+        Hw, Ww = mapw.shape
+        r0 = max(0, int(math.floor((mapw.north0_m - fp[1]) / g)))
+        c0 = max(0, int(math.floor((fp[2] - mapw.east0_m) / g)))
+        Ho = min(Hw - r0, int(math.ceil((fp[1] - fp[0]) / g)))
+        Wo = min(Ww - c0, int(math.ceil((fp[3] - fp[2]) / g)))
+        map_grey = to_grey_u8(mapw.data)
+        t1 = time.perf_counter()
+        lat["window"] = 1e3 * (t1 - t0)
+        if Ho < 16 or Wo < 16 or mapw.valid.mean() < 0.05:
+            return fail("search window off the reference map", window=win)
+
+        small, K_s = self.ortho.prepare(frame_image, nadir_gsd_m(self.camera, height) / g)
+        of = self.ortho.rectify(small, K_s, centre, R_nc, mapw.north0_m - r0 * g, mapw.east0_m + c0 * g, g,
+                                (Ho, Wo), (c0, r0), ground_down, height_fn)
+        t2 = time.perf_counter()
+        lat["ortho"] = 1e3 * (t2 - t1)
+
+        prior = MatchPrior((float(c0), float(r0)), win.margin_m / g, of.valid, mapw.valid, g)
+        res = self.matcher.match(of.image, map_grey, prior)
+        t3 = time.perf_counter()
+        lat["match"] = 1e3 * (t3 - t2)
+        keep = dict(window=win)
+        if p.keep_images:
+            tw = p.thumb_px
+            th = max(1, round(tw * small.shape[0] / small.shape[1]))
+            keep.update(ortho=of.image, ortho_valid=of.valid, map_window=map_grey,
+                        frame_thumb=cv2.resize(small, (tw, th), interpolation=cv2.INTER_AREA))
+        if res is None:
+            return fail("no match", **keep)
+        off_m = np.array([-res.offset_px[1] * g, res.offset_px[0] * g])  # (north, east)
+        keep.update(peak_quality=res.quality, offset_px=res.offset_px, offset_m=off_m)
+        if res.quality < p.min_quality:
+            return fail(f"match quality {res.quality:.2f} < {p.min_quality}", **keep)
+
+        # Correspondences: ortho px -> original camera px (through the estimated-pose mapping),
+        # map px -> NE of the map window at the terrain height.
+        if res.ortho_px is not None and len(res.ortho_px) >= p.min_correspondences:
+            o_px, m_px = res.ortho_px, res.map_px
+        else:  # area match without tiles: a grid of valid ortho pixels shifted by the offset
+            gy, gx = np.mgrid[0:Ho:max(1, Ho // 8), 0:Wo:max(1, Wo // 8)]
+            sel = of.valid[gy, gx]
+            o_px = np.c_[gx[sel], gy[sel]].astype(float)
+            m_px = o_px + np.array([c0, r0]) + res.offset_px
+        uv = of.cam_xy_full(o_px[:, 0], o_px[:, 1])
+        north, east = mapw.rowcol_to_ne(m_px[:, 1], m_px[:, 0])
+        down = np.full_like(north, ground_down) if height_fn is None else height_fn(north, east)
+        X = np.c_[north, east, down]
+        sigma_px = math.sqrt(max(float(np.linalg.eigvalsh(res.cov_px2).max()), 1e-4))
+        att_cov = np.asarray(estimate.cov_att_rad2, float) if p.use_attitude_prior else None
+        sol = solve_camera_pose(X, uv, self.camera.K, centre, R_nc, sigma_px * g, att_cov,
+                                sigma_img_px=p.sigma_img_px, method=p.pose_method)
+        t4 = time.perf_counter()
+        lat["pose"] = 1e3 * (t4 - t3)
+        keep.update(n_correspondences=len(X))
+        if sol is None:
+            return fail("pose solve failed", **keep)
+        keep.update(n_inliers=int(sol.inliers.sum()))
+        R_nb_fix = sol.R_nc @ self.mount.R_bc.T  # camera->NED times body->camera
+        pos_fix = sol.centre_ned_m - R_nb_fix @ np.asarray(self.mount.lever_arm_b_m, float)
+        jump = float(np.hypot(*(pos_fix[:2] - pos[:2])))
+        if jump > p.max_jump_factor * win.margin_m + 2 * g:
+            return fail(f"fix {jump:.0f} m from the estimate, outside the search window", **keep)
+        # Floor: the tiles share errors the solve cannot average (map georeference, unmodelled
+        # relief), so the horizontal sigma is at least one correspondence's and sigma_floor_m.
+        cov = sol.cov_centre_m2.copy()
+        floor = max(p.sigma_floor_m, sigma_px * g) ** 2
+        cov[:2, :2] += floor * np.eye(2)
+        cov[2, 2] += floor
+        quality = float(res.quality * sol.inliers.mean())
+        lat["total"] = sum(lat.values())
+        lat["ortho_to_fix"] = lat["ortho"] + lat["match"] + lat["pose"]
+        fix = PositionFix(float(t_s), pos_fix, cov, quality, "ismn")
+        return fix, IsmnDiagnostics(t_s, dict(lat), **{**keep, "peak_quality": quality})

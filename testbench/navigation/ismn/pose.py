@@ -1,0 +1,149 @@
+"""Camera pose from map correspondences (PnP), so that an attitude error does not become a
+position error.
+
+Model: a map point X_n (NED, at its terrain height) is seen at the undistorted pixel
+u = pi(K R_cn (X_n - c_n)). Unknowns: the camera centre c_n and a small rotation delta of the
+camera frame, R_nc = R_nc0 Exp(delta). Solved by Gauss-Newton with
+- per-point image covariance from the map-point uncertainty: Sigma_i = J_g sigma_g^2 J_g^T,
+  J_g = d u / d (north, east) (a matcher error is an error on the ground, not in the image);
+- optionally a prior on the attitude from the INS (cov_att_rad2, NED small angles psi with
+  R_nc = Exp(psi) R_nc0): with a good INS attitude the solve leans on it, with a poor one the
+  image geometry frees it (MAP estimate);
+- one round of outlier rejection (Mahalanobis chi-square, 2 dof, 99.9 %).
+method "opencv" uses cv2.solvePnP (SOLVEPNP_ITERATIVE seeded with the estimate) instead and only
+the covariance from the same Jacobian.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from testbench.core.rotations import quat_to_rotvec, dcm_to_quat, rotvec_to_quat, quat_to_dcm, skew
+
+CHI2_2DOF_999 = 13.8155
+
+
+@dataclass(frozen=True)
+class PoseSolution:
+    """centre_ned_m (3,), R_nc (3, 3) camera->NED, cov_centre_m2 (3, 3), cov_att_rad2 (3, 3) (NED
+    small angles), inliers (N,) bool, rms_px: post-fit image residual RMS of the inliers."""
+
+    centre_ned_m: np.ndarray
+    R_nc: np.ndarray
+    cov_centre_m2: np.ndarray
+    cov_att_rad2: np.ndarray
+    inliers: np.ndarray
+    rms_px: float
+
+
+def _exp(rotvec):
+    return quat_to_dcm(rotvec_to_quat(np.asarray(rotvec, float)))
+
+
+def _log(R):
+    return quat_to_rotvec(dcm_to_quat(R))
+
+
+def _project(K, R_nc, c, X):
+    """(uv (N, 2), x_c (N, 3)) of NED points X (N, 3)."""
+    xc = (X - c) @ R_nc  # rows: R_cn (X - c)
+    uv = np.c_[K[0, 0] * xc[:, 0] / xc[:, 2] + K[0, 2], K[1, 1] * xc[:, 1] / xc[:, 2] + K[1, 2]]
+    return uv, xc
+
+
+def _linearise(K, R_nc, c, X, uv_obs, sigma_ground_m, sigma_img_px):
+    """Residuals, Jacobians (N, 2, 6) for [dc_n, delta_c], per-point information (N, 2, 2)."""
+    uv, xc = _project(K, R_nc, c, X)
+    r = uv_obs - uv
+    z = xc[:, 2]
+    Jp = np.zeros((len(X), 2, 3))
+    Jp[:, 0, 0] = K[0, 0] / z
+    Jp[:, 0, 2] = -K[0, 0] * xc[:, 0] / z**2
+    Jp[:, 1, 1] = K[1, 1] / z
+    Jp[:, 1, 2] = -K[1, 1] * xc[:, 1] / z**2
+    R_cn = R_nc.T
+    J = np.empty((len(X), 2, 6))
+    J[:, :, :3] = -Jp @ R_cn  # d x_c / d c_n = -R_cn
+    J[:, :, 3:] = Jp @ skew(xc)  # R_nc Exp(delta): x_c -> x_c - delta x x_c = x_c + [x_c]x delta
+    Jg = Jp @ R_cn[:, :2]  # d uv / d (north, east) of the map point
+    S = sigma_ground_m**2 * (Jg @ Jg.transpose(0, 2, 1)) + sigma_img_px**2 * np.eye(2)
+    return r, J, np.linalg.inv(S)
+
+
+def solve_camera_pose(
+    X_ned_m: np.ndarray,
+    uv_px: np.ndarray,
+    K: np.ndarray,
+    centre0_ned_m: np.ndarray,
+    R_nc0: np.ndarray,
+    sigma_ground_m: float,
+    att_prior_cov_rad2: np.ndarray | None = None,
+    *,
+    sigma_img_px: float = 0.5,
+    method: str = "map",
+    iterations: int = 8,
+) -> PoseSolution | None:
+    """Camera centre and attitude from N >= 4 correspondences X_ned_m (N, 3) <-> uv_px (N, 2)
+    (full-resolution undistorted pixels), seeded with the estimated pose (centre0, R_nc0)."""
+    X = np.asarray(X_ned_m, float)
+    uv = np.asarray(uv_px, float)
+    if len(X) < 4:
+        return None
+    c = np.asarray(centre0_ned_m, float).copy()
+    R = np.asarray(R_nc0, float).copy()
+    inl = np.ones(len(X), bool)
+    P_prior_inv = None
+    if att_prior_cov_rad2 is not None and method == "map":
+        P_prior_inv = np.linalg.inv(np.asarray(att_prior_cov_rad2, float) + 1e-12 * np.eye(3))
+    if method == "opencv":
+        ref = X.mean(axis=0)
+        R_cn = R.T
+        rvec0, _ = cv2.Rodrigues(R_cn)
+        tvec0 = R_cn @ (ref - c)
+        ok, rvec, tvec = cv2.solvePnP(X - ref, uv, K, None, rvec0, tvec0.reshape(3, 1), True, cv2.SOLVEPNP_ITERATIVE)
+        if not ok:
+            return None
+        R_cn = cv2.Rodrigues(rvec)[0]
+        R, c = R_cn.T, ref - R_cn.T @ tvec.ravel()
+        iterations = 0
+    for rnd in range(2):
+        for _ in range(iterations):
+            r, J, W = _linearise(K, R, c, X[inl], uv[inl], sigma_ground_m, sigma_img_px)
+            A = np.einsum("nki,nkl,nlj->ij", J, W, J)
+            b = np.einsum("nki,nkl,nl->i", J, W, r)
+            if P_prior_inv is not None:
+                psi = _log(R @ R_nc0.T)  # NED attitude deviation from the INS
+                Jpsi = np.zeros((3, 6))
+                Jpsi[:, 3:] = R  # d psi / d delta (camera-frame increment)
+                A += Jpsi.T @ P_prior_inv @ Jpsi
+                b += Jpsi.T @ P_prior_inv @ (-psi)
+            try:
+                dx = np.linalg.solve(A + 1e-9 * np.eye(6), b)
+            except np.linalg.LinAlgError:
+                return None
+            c = c + dx[:3]
+            R = R @ _exp(dx[3:])
+            if np.linalg.norm(dx[:3]) < 1e-4 and np.linalg.norm(dx[3:]) < 1e-8:
+                break
+        r, J, W = _linearise(K, R, c, X, uv, sigma_ground_m, sigma_img_px)
+        d2 = np.einsum("nk,nkl,nl->n", r, W, r)
+        new_inl = d2 < CHI2_2DOF_999
+        if rnd == 1 or new_inl.sum() < 4 or (new_inl == inl).all():
+            break
+        inl = new_inl
+        if method == "opencv":
+            iterations = 8  # refine the inlier set with Gauss-Newton
+    r, J, W = _linearise(K, R, c, X[inl], uv[inl], sigma_ground_m, sigma_img_px)
+    A = np.einsum("nki,nkl,nlj->ij", J, W, J)
+    if P_prior_inv is not None:
+        A[3:, 3:] += R.T @ P_prior_inv @ R
+    try:
+        cov = np.linalg.inv(A + 1e-12 * np.eye(6))
+    except np.linalg.LinAlgError:
+        return None
+    cov_att = R @ cov[3:, 3:] @ R.T
+    rms = float(np.sqrt(np.mean(np.sum(r**2, axis=1)))) if len(r) else float("nan")
+    return PoseSolution(c, R, 0.5 * (cov[:3, :3] + cov[:3, :3].T), cov_att, inl, rms)
