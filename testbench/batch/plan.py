@@ -1,0 +1,121 @@
+"""What a Monte Carlo batch is: N runs of one scenario, each with its own seed sequence
+(SeedSequence(seed).spawn(N)) and, optionally, parameters varied by distribution.
+
+`--vary key=DIST` forms (values are drawn from the batch's own "vary" stream, so the same
+batch gives the same draws):
+  uniform(a, b) | normal(mu, sigma) | choice(a, b, c) | linspace(a, b)  (evenly over runs)
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from testbench.core.errors import InputError
+from testbench.core.rng import run_seed_sequences
+
+_DIST = re.compile(r"^\s*(uniform|normal|choice|linspace)\s*\((.*)\)\s*$")
+
+
+@dataclass(frozen=True)
+class Vary:
+    """One varied key: dotted scenario path and its distribution."""
+
+    key: str
+    dist: str
+    args: tuple[Any, ...]
+
+    @classmethod
+    def parse(cls, text: str) -> "Vary":
+        if "=" not in text:
+            raise InputError(f"--vary {text!r}: expected key.path=distribution(args), e.g. vehicles.uav0.initial.heading_deg=uniform(0, 360)")
+        key, _, rhs = text.partition("=")
+        m = _DIST.match(rhs)
+        if not m:
+            raise InputError(f"--vary {text!r}: unknown distribution {rhs.strip()!r}; expected uniform(a, b), normal(mu, sigma), choice(a, b, ...) or linspace(a, b)")
+        name, raw_args = m.group(1), m.group(2)
+        args = tuple(_scalar(a) for a in raw_args.split(",") if a.strip())
+        need = {"uniform": 2, "normal": 2, "linspace": 2}
+        if name in need and len(args) != need[name]:
+            raise InputError(f"--vary {text!r}: {name} takes {need[name]} arguments, got {len(args)}")
+        if name == "choice" and not args:
+            raise InputError(f"--vary {text!r}: choice needs at least one value")
+        if name in ("uniform", "normal", "linspace") and not all(isinstance(a, (int, float)) for a in args):
+            raise InputError(f"--vary {text!r}: {name} takes numbers")
+        return cls(key.strip(), name, args)
+
+    def draw(self, n: int, rng: np.random.Generator) -> list[Any]:
+        """n values, one per run, in run order."""
+        a = self.args
+        if self.dist == "uniform":
+            return [float(x) for x in rng.uniform(a[0], a[1], n)]
+        if self.dist == "normal":
+            return [float(x) for x in rng.normal(a[0], a[1], n)]
+        if self.dist == "linspace":
+            return [float(x) for x in np.linspace(a[0], a[1], n)]
+        idx = rng.integers(0, len(a), n)
+        return [a[i] for i in idx]
+
+
+def _scalar(text: str) -> Any:
+    t = text.strip().strip("'\"")
+    for conv in (int, float):
+        try:
+            return conv(t)
+        except ValueError:
+            pass
+    return t
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One run of a batch: its index, seed sequence (entropy + spawn key), overrides."""
+
+    index: int
+    entropy: int
+    spawn_key: tuple[int, ...]
+    overrides: tuple[str, ...]
+    varied: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def name(self) -> str:
+        return f"run_{self.index:05d}"
+
+    def seed_sequence(self) -> np.random.SeedSequence:
+        return np.random.SeedSequence(entropy=self.entropy, spawn_key=self.spawn_key)
+
+
+@dataclass(frozen=True)
+class BatchPlan:
+    """The whole batch; `identity()` is what a resumed batch must match."""
+
+    scenario: str
+    runs: int
+    seed: int
+    overrides: tuple[str, ...]
+    vary: tuple[Vary, ...]
+
+    def run_specs(self) -> list[RunSpec]:
+        seqs = run_seed_sequences(self.seed, self.runs)
+        rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence(self.seed, spawn_key=(0x7661_7279,))))  # "vary"
+        draws = {v.key: v.draw(self.runs, rng) for v in self.vary}
+        specs = []
+        for i, s in enumerate(seqs):
+            varied = {k: vals[i] for k, vals in draws.items()}
+            extra = tuple(f"{k}={json.dumps(val)}" for k, val in varied.items())
+            specs.append(RunSpec(i, int(s.entropy), tuple(int(x) for x in s.spawn_key), self.overrides + extra, varied))
+        return specs
+
+    def identity(self) -> dict[str, Any]:
+        return {
+            "scenario": str(Path(self.scenario).resolve()),
+            "runs": self.runs,
+            "seed": self.seed,
+            "overrides": list(self.overrides),
+            "vary": [asdict(v) | {"args": list(v.args)} for v in self.vary],
+        }

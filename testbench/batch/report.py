@@ -1,0 +1,96 @@
+"""The batch's HTML report: status table, summary statistics, histograms and CDFs of the main
+metrics, and each metric against each varied parameter. Self-contained (embedded PNGs)."""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import math
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+# Metrics worth a figure when present (the summary table lists every metric).
+_HEADLINE = (
+    "nav.horizontal_error_m.mean", "nav.horizontal_error_m.max",
+    "ismn.smooth.horizontal_error_m.mean", "ismn.turning.horizontal_error_m.mean", "ismn.fix_rate",
+    "relnav.error_m.max", "formation.error_m.rms",
+    "control.altitude_error_m.rms", "control.cross_track_error_m.rms", "real_time_factor",
+)
+
+
+def _png(fig) -> str:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
+    plt.close(fig)
+    return base64.b64encode(buf.getvalue()).decode("ascii")
+
+
+def _values(rows: list[dict[str, Any]], key: str) -> np.ndarray:
+    x = np.array([float(r.get(key, math.nan)) if r.get(key) is not None else math.nan for r in rows], float)
+    return x
+
+
+def write_batch_report(out_dir: Path, rows: list[dict[str, Any]], summary: dict[str, Any], path: Path) -> None:
+    figures: list[tuple[str, str]] = []
+    varied = sorted({k for r in rows for k in r if k.startswith("vary.")})
+    for key in _HEADLINE:
+        x = _values(rows, key)
+        x = x[np.isfinite(x)]
+        if x.size == 0:
+            continue
+        fig, (a, b) = plt.subplots(1, 2, figsize=(9, 3))
+        a.hist(x, bins=min(30, max(5, x.size // 3)), color="#4477aa")
+        a.set_xlabel(key)
+        a.set_ylabel("runs")
+        s = np.sort(x)
+        b.step(s, np.arange(1, s.size + 1) / s.size, where="post", color="#aa3377")
+        b.set_xlabel(key)
+        b.set_ylabel("fraction of runs")
+        b.grid(alpha=0.3)
+        figures.append((f"{key}: histogram and CDF over {x.size} runs", _png(fig)))
+        for v in varied:
+            p = _values(rows, v)
+            y = _values(rows, key)
+            ok = np.isfinite(p) & np.isfinite(y)
+            if ok.sum() < 2:
+                continue
+            fig, ax = plt.subplots(figsize=(5, 3))
+            ax.plot(p[ok], y[ok], "o", ms=3)
+            ax.set_xlabel(v[5:])
+            ax.set_ylabel(key)
+            ax.grid(alpha=0.3)
+            figures.append((f"{key} against {v[5:]}", _png(fig)))
+    stat_rows = "".join(
+        f"<tr><td>{html.escape(k)}</td>" + "".join(f"<td>{_fmt(d.get(c))}</td>" for c in ("n", "mean", "ci95_low", "ci95_high", "std", "median", "p95", "max")) + "</tr>"
+        for k, d in summary["metrics"].items()
+    )
+    run_rows = "".join(
+        f"<tr><td>{r.get('run')}</td><td>{html.escape(str(r.get('status')))}</td><td>{html.escape(str(r.get('error') or ''))[:200]}</td></tr>"
+        for r in rows if r.get("status") not in ("passed",)
+    )
+    pr = summary["threshold_pass_rate"]
+    body = f"""<!DOCTYPE html><html><head><meta charset="utf-8"><title>Monte Carlo: {html.escape(out_dir.name)}</title>
+<style>body{{font-family:sans-serif;margin:2em;max-width:70em}}table{{border-collapse:collapse}}td,th{{border:1px solid #ccc;padding:2px 6px;font-size:90%}}img{{max-width:100%}}</style></head><body>
+<h1>Monte Carlo batch {html.escape(out_dir.name)}</h1>
+<p>{summary['runs_done']} of {summary['runs_planned']} runs done; status: {html.escape(str(summary['status_counts']))}.
+Threshold pass rate {_fmt(pr['value'])} (95 % CI {_fmt(pr['ci95_low'])} to {_fmt(pr['ci95_high'])}, n = {pr['n']}).</p>
+<h2>Runs that did not pass</h2><table><tr><th>run</th><th>status</th><th>error</th></tr>{run_rows or '<tr><td colspan=3>none</td></tr>'}</table>
+<h2>Figures</h2>{''.join(f'<figure><img alt="{html.escape(t)}" src="data:image/png;base64,{b}"><figcaption>{html.escape(t)}</figcaption></figure>' for t, b in figures)}
+<h2>Statistics</h2><table><tr><th>metric</th><th>n</th><th>mean</th><th>CI95 low</th><th>CI95 high</th><th>std</th><th>median</th><th>p95</th><th>max</th></tr>{stat_rows}</table>
+</body></html>"""
+    tmp = path.with_suffix(".html.part")
+    tmp.write_text(body, encoding="utf-8")
+    tmp.replace(path)
+
+
+def _fmt(v: Any) -> str:
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "-"
+    return f"{v:.4g}" if isinstance(v, float) else str(v)
