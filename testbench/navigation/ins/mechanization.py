@@ -11,7 +11,10 @@ dv_b = f_ib_b dt (m/s), treated as the integrals over the interval (what an IMU 
   increments (two-sample algorithms, Savage; exact for rates and forces varying linearly
   over the two intervals):
       dtheta_c = dtheta + (1/12) dtheta_prev x dtheta
-      dv_c     = dv + 1/2 dtheta x dv + (1/12) (dtheta_prev x dv + dv_prev x dtheta);
+      dv_c     = dv + 1/2 dtheta x dv + 1/6 dtheta x (dtheta x dv)
+                    + (1/12) (dtheta_prev x dv + dv_prev x dtheta);
+  (the second-order rotation term makes a constant-rate rotation exact to third order: the
+  first-order sculling term is -1/12 dt^3 [w x]^2 f there and needs its +1/6 partner);
 - velocity: v+ = v + (I - 1/2 [w_in dt x]) C_nb dv_c + (g - (2 w_ie + w_en) x v) dt
   (Coriolis, transport rate, normal gravity evaluated at the start of the interval);
 - position (trapezoidal velocity): h+ = h - vD_avg dt; L+ = L + vN_avg dt / (R_M + h_avg);
@@ -110,9 +113,10 @@ def _step(m, lat, lon, h, v, q, dth, dv, dth_prev, dv_prev, dt):
     c = _cross(*dth_prev, *dth)
     dthc = (dth[0] + c[0] / 12.0, dth[1] + c[1] / 12.0, dth[2] + c[2] / 12.0)
     rot = _cross(*dth, *dv)
+    rot2 = _cross(*dth, *rot)
     s1 = _cross(*dth_prev, *dv)
     s2 = _cross(*dv_prev, *dth)
-    dvb = tuple(dv[i] + 0.5 * rot[i] + (s1[i] + s2[i]) / 12.0 for i in range(3))
+    dvb = tuple(dv[i] + 0.5 * rot[i] + rot2[i] / 6.0 + (s1[i] + s2[i]) / 12.0 for i in range(3))
 
     # Specific-force increment resolved in NED: C_nb(q) dvb, then half the nav-frame turn.
     qw, qx, qy, qz = q

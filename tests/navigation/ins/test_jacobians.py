@@ -1,0 +1,166 @@
+"""Analytic F and H of the error-state EKF vs central finite differences of the nonlinear
+mechanisation and measurement functions."""
+
+from __future__ import annotations
+
+import copy
+import math
+
+import numpy as np
+import pytest
+
+from testbench.core import geodesy
+from testbench.core.interfaces import GeodeticOrigin
+from testbench.core.rotations import dcm_to_euler, euler_to_quat, quat_multiply, quat_to_dcm, rotvec_to_quat
+from testbench.navigation.ins import measurements as meas
+from testbench.navigation.ins.ekf import ErrorStateEKF
+from testbench.navigation.ins.error_model import N_CORE, continuous_F, inject_nav, nav_error
+from testbench.navigation.ins.imu_noise import imu_noise_from_datasheet
+
+TAU_G, TAU_A = 300.0, 200.0
+
+
+def _derivative(x, w_meas, f_meas):
+    """Nonlinear continuous dynamics: returns a function s -> state advanced by s along the flow
+    (first order, which is all a central difference in s needs)."""
+    lat, lon, h, v, q, bg, ba = x
+    w_ib = w_meas - bg
+    f_b = f_meas - ba
+    r_m, r_n = geodesy.radii_of_curvature(lat)
+    wie = geodesy.earth_rate_ned_rps(lat)
+    wen = geodesy.transport_rate_ned_rps(lat, h, v)
+    C = quat_to_dcm(q)
+    v_dot = C @ f_b - np.cross(2 * wie + wen, v) + geodesy.gravity_ned_mps2(lat, h)
+    lat_dot = v[0] / (r_m + h)
+    lon_dot = v[1] / ((r_n + h) * math.cos(lat))
+    h_dot = -v[2]
+
+    def advance(s):
+        q_s = quat_multiply(quat_multiply(rotvec_to_quat(-(wie + wen) * s), q), rotvec_to_quat(w_ib * s))
+        return (lat + lat_dot * s, lon + lon_dot * s, h + h_dot * s, v + v_dot * s, q_s,
+                bg * math.exp(-s / TAU_G), ba * math.exp(-s / TAU_A))
+
+    return advance
+
+
+def _error(x, x_ref):
+    e = np.empty(N_CORE)
+    e[:9] = nav_error(*x[:5], *x_ref[:5])
+    e[9:12] = x[5] - x_ref[5]
+    e[12:15] = x[6] - x_ref[6]
+    return e
+
+
+def _inject(x, dx):
+    lat, lon, h, v, q = inject_nav(*x[:5], dx)
+    return (lat, lon, h, v, q, x[5] + dx[9:12], x[6] + dx[12:15])
+
+
+def _error_rate(x_hat, dx, w_meas, f_meas, s=1e-2):
+    x = _inject(x_hat, dx)
+    adv, adv_hat = _derivative(x, w_meas, f_meas), _derivative(x_hat, w_meas, f_meas)
+    return (_error(adv(s), adv_hat(s)) - _error(adv(-s), adv_hat(-s))) / (2 * s)
+
+
+def test_F_matches_finite_differences():
+    x_hat = (0.7, -1.6, 1200.0, np.array([40.0, -25.0, 3.0]), euler_to_quat(np.radians([8.0, -4.0, 140.0])),
+             np.radians([3.0, -2.0, 5.0]) / 3600, np.array([2e-3, -1e-3, 3e-3]))
+    w_meas = np.array([0.1, -0.05, 0.2])
+    f_meas = np.array([0.5, -0.3, -9.5])
+    steps = np.array([1.0] * 3 + [0.01] * 3 + [1e-4] * 3 + [1e-6] * 3 + [1e-3] * 3)
+    F_num = np.empty((N_CORE, N_CORE))
+    for j in range(N_CORE):
+        d = np.zeros(N_CORE)
+        d[j] = steps[j]
+        F_num[:, j] = (_error_rate(x_hat, d, w_meas, f_meas) - _error_rate(x_hat, -d, w_meas, f_meas)) / (2 * steps[j])
+    C = quat_to_dcm(x_hat[4])
+    F = continuous_F(x_hat[0], x_hat[2], x_hat[3], C, C @ (f_meas - x_hat[6]), TAU_G, TAU_A)[:N_CORE, :N_CORE]
+    # Absolute tolerance per column: the FD resolution of each perturbation size, and the
+    # neglected e^2-sized terms (dR/dL, dg/dL), all below 1e-7 in position-derived entries.
+    np.testing.assert_allclose(F, F_num, rtol=1e-4, atol=2e-7)
+    # The small terms are there, not just within the tolerance of zero.
+    assert F[5, 2] == pytest.approx(F_num[5, 2], rel=1e-2)  # gravity gradient ~3e-6 /s^2
+    assert abs(F_num[6, 0]) > 1e-12 and F[6, 0] == pytest.approx(F_num[6, 0], rel=1e-2)
+
+
+def _ekf_at(x_hat):
+    noise = imu_noise_from_datasheet(0.15, 7.0, 0.02, 14.0)
+    ekf = ErrorStateEKF(noise)
+    lat, lon, h, v, q = x_hat
+    ekf.initialize(0.0, lat, lon, h, v, q, np.eye(16))
+    ekf.b_baro = 1.5
+    return ekf
+
+
+def _numeric_H(ekf, model, steps):
+    """H = -d y / d dx, evaluating the residual with the nominal replaced by nominal (+) dx."""
+    y0 = model(ekf)[0]
+    H = np.empty((y0.size, 16))
+    for j in range(16):
+        ys = []
+        for sign in (1.0, -1.0):
+            e = copy.deepcopy(ekf)
+            d = np.zeros(16)
+            d[j] = sign * steps[j]
+            e.inject(d)
+            ys.append(model(e)[0])
+        H[:, j] = -(ys[0] - ys[1]) / (2 * steps[j])
+    return H
+
+
+STEPS = np.array([1.0] * 3 + [0.01] * 3 + [1e-5] * 3 + [1e-6] * 3 + [1e-3] * 3 + [0.1])
+X_HAT = (0.7, -1.6, 1200.0, np.array([40.0, -25.0, 3.0]), euler_to_quat(np.radians([8.0, -4.0, 140.0])))
+ORIGIN = GeodeticOrigin(0.7 - 3000 / 6.37e6, -1.6 + 2000 / 4.9e6, 300.0)
+B_NED = np.array([17e-6, 1e-6, 52e-6])
+
+
+@pytest.mark.parametrize(
+    "name, model",
+    [
+        ("gnss_pos", lambda e: meas.gnss_position(e, 0.7 + 1e-6, -1.6 - 2e-6, 1190.0, [2, 2, 4])),
+        ("gnss_vel", lambda e: meas.gnss_velocity(e, [41.0, -24.0, 2.0], [0.1] * 3)),
+        ("position_fix", lambda e: meas.position_ned(e, [3000.0, -2000.0, -900.0], np.eye(3) * 25, ORIGIN)),
+        ("baro", lambda e: meas.baro_altitude(e, 1203.0, 1.0)),
+        ("mag_vector", lambda e: meas.mag_vector(e, np.array([10e-6, 12e-6, 50e-6]), B_NED, 1e-7)),
+    ],
+)
+def test_H_matches_finite_differences(name, model):
+    ekf = _ekf_at(X_HAT)
+    H = model(ekf)[1]
+    H_num = _numeric_H(ekf, model, STEPS)
+    # Entries ~ y / R (~1e-6) from the residual's own scale factors are second order.
+    scale = np.abs(H).max()
+    np.testing.assert_allclose(H, H_num, rtol=1e-5, atol=3e-6 * scale, err_msg=name)
+
+
+def test_yaw_jacobian_matches_finite_differences():
+    C = quat_to_dcm(euler_to_quat(np.radians([12.0, -25.0, 140.0])))
+    J = meas.yaw_jacobian(C)
+    J_num = np.empty(3)
+    for j in range(3):
+        d = np.zeros(3)
+        d[j] = 1e-6
+        yaw_p = dcm_to_euler(quat_to_dcm(rotvec_to_quat(d)) @ C)[2]
+        yaw_m = dcm_to_euler(quat_to_dcm(rotvec_to_quat(-d)) @ C)[2]
+        J_num[j] = (yaw_p - yaw_m) / 2e-6
+    np.testing.assert_allclose(J, J_num, atol=1e-8)
+
+
+def test_reset_jacobian_matches_finite_differences():
+    """After injecting dphi, the new attitude error phi+ = Log(Exp(phi) Exp(-dphi)) has
+    d phi+ / d phi = I + [dphi x] / 2."""
+    from testbench.core.rotations import quat_conjugate, quat_to_rotvec
+    from testbench.navigation.ins.error_model import reset_jacobian
+
+    dphi = np.array([0.02, -0.03, 0.05])
+    G = reset_jacobian(dphi)[6:9, 6:9]
+
+    def phi_plus(phi):
+        return quat_to_rotvec(quat_multiply(rotvec_to_quat(phi), quat_conjugate(rotvec_to_quat(dphi))))
+
+    G_num = np.empty((3, 3))
+    for j in range(3):
+        d = np.zeros(3)
+        d[j] = 1e-6
+        G_num[:, j] = (phi_plus(dphi + d) - phi_plus(dphi - d)) / 2e-6
+    np.testing.assert_allclose(G, G_num, atol=1e-3)  # first order in dphi (|dphi|^2 ~ 4e-3)
