@@ -110,29 +110,34 @@ def fixed_wing_metrics(tr: Trace, settle_s: float = 60.0) -> dict:
     }
 
 
-def racetrack_mission(ctx: BuildContext, altitude_m: float = 800.0, leg_length_m: float = 2000.0, airspeed_mps: float = 25.0):
+def racetrack_mission(ctx: BuildContext, altitude_m: float = 800.0, leg_length_m: float = 2000.0, airspeed_mps: float = 25.0,
+                      turn_bank_deg: float = 28.0):
     from testbench.control.missions import RacetrackMission
 
-    p = RacetrackMission.Params(center={"north_m": 0.0, "east_m": 0.0}, leg_length_m=leg_length_m, turn_bank_deg=30.0,
+    p = RacetrackMission.Params(center={"north_m": 0.0, "east_m": 0.0}, leg_length_m=leg_length_m, turn_bank_deg=turn_bank_deg,
                                 heading_deg=0.0, direction="cw", altitude_m=altitude_m, airspeed_mps=airspeed_mps)
     return RacetrackMission(p, ctx=ctx)
 
 
-def evaluate_fixed_wing(duration_s: float = 600.0, aircraft: str = "tb_fixedwing", control_rate_hz: float = 50.0) -> dict:
+def evaluate_fixed_wing(duration_s: float = 600.0, aircraft: str = "tb_fixedwing", control_rate_hz: float = 50.0,
+                        turn_bank_deg: float = 28.0, max_bank_deg: float = 30.0, **controller_params) -> dict:
     """Racetrack at 800 m, 2 km legs, 30 deg turns; starts on leg 0 at its start, trimmed."""
     from testbench.control.fixed_wing import FixedWingController
     from testbench.dynamics.jsbsim_adapter import InitialCondition
 
     ctx = make_context()
-    mission = racetrack_mission(ctx)
+    mission = racetrack_mission(ctx, turn_bank_deg=turn_bank_deg)
     dyn = make_dynamics(aircraft)
-    seg0 = mission.path(25.0)[0]
+    seg0 = mission.path(25.0)[0]  # start on leg 0's start, heading along it
     start = seg0.start_ne_m
     truth = dyn.reset(InitialCondition(pos_ned_m=(float(start[0]), float(start[1]), -800.0), heading_rad=0.0, airspeed_mps=25.0))
     clear_trim_settings(dyn)
-    ctl = FixedWingController(FixedWingController.Params(max_bank_deg=30.0), ctx=ctx, mission=mission, aircraft=dyn.aircraft_meta)
+    ctl = FixedWingController(FixedWingController.Params(max_bank_deg=max_bank_deg, **controller_params), ctx=ctx, mission=mission, aircraft=dyn.aircraft_meta)
     tr = fly(dyn, ctl, duration_s, control_rate_hz, truth)
-    return fixed_wing_metrics(tr, settle_s=min(60.0, 0.2 * duration_s))
+    out = fixed_wing_metrics(tr, settle_s=min(60.0, 0.2 * duration_s))
+    out["turn_bank_deg"], out["max_bank_limit_deg"] = turn_bank_deg, max_bank_deg
+    out["turn_radius_m"] = mission.turn_radius_m(25.0)
+    return out
 
 
 def main(argv: list[str] | None = None) -> int:

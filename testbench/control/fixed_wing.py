@@ -45,7 +45,8 @@ class FixedWingController(Controller):
 
     Params: max_bank_deg (default: the sidecar's max_bank_deg, else 30); airspeed_mps (default:
     the mission's, else the sidecar's cruise_airspeed_mps); l1_period_s, l1_damping (L1 law);
-    max_climb_rate_mps; altitude_error_clip_m (altitude error fed to the LQI is clipped to this);
+    max_climb_rate_mps; altitude_error_clip_m; roll_lead_s (guidance evaluated this far ahead on
+    the current turn to cancel the roll loop's lag, about 1/roll bandwidth plus the roll-in time) (altitude error fed to the LQI is clipped to this);
     gains_aircraft: name of a stored gain set (default: the vehicle's aircraft name; designed at
     start-up from the linear model when none is stored).
     """
@@ -57,6 +58,7 @@ class FixedWingController(Controller):
         l1_damping: float = pydantic.Field(default=0.75, gt=0.0)
         max_climb_rate_mps: float = pydantic.Field(default=3.0, gt=0.0)
         altitude_error_clip_m: float = pydantic.Field(default=15.0, gt=0.0)
+        roll_lead_s: float = pydantic.Field(default=0.0, ge=0.0)
         gains_aircraft: str | None = None
 
     def __init__(self, params: "FixedWingController.Params", *, ctx: BuildContext, mission, aircraft: dict, **_: object):
@@ -109,7 +111,8 @@ class FixedWingController(Controller):
         h = -float(pos[2])
 
         # Lateral guidance.
-        out = self.follower.update(pos[:2], vel[:2])
+        turn_rate = G * math.tan(_clip(phi, -1.2, 1.2)) / max(ground_speed, 5.0)
+        out = self.follower.update(pos[:2], vel[:2], lead_s=self.params.roll_lead_s, turn_rate_rps=turn_rate)
         phi_c = out.bank_cmd_rad
 
         # Altitude reference: rate-limited towards the command.

@@ -100,10 +100,17 @@ class PathFollower:
                 best, best_cost = i, cost
         return best
 
-    def update(self, pos_ne_m: np.ndarray, vel_ne_mps: np.ndarray) -> L1Output:
-        """Advance the active segment and compute the L1 command at this position/velocity."""
-        p = np.asarray(pos_ne_m, float)[:2]
-        v = np.asarray(vel_ne_mps, float)[:2]
+    def update(self, pos_ne_m: np.ndarray, vel_ne_mps: np.ndarray, *, lead_s: float = 0.0,
+               turn_rate_rps: float = 0.0) -> L1Output:
+        """Advance the active segment and compute the L1 command at this position/velocity.
+
+        lead_s > 0 evaluates the law at the position predicted lead_s ahead on the current
+        turn (turn_rate_rps, right +): this cancels the lag of the roll loop, so the bank
+        command leads the path's curvature changes by about the roll response time instead
+        of trailing them. The reported cross-track is that of the present position.
+        """
+        p_now = np.asarray(pos_ne_m, float)[:2]
+        p, v = predict_on_turn(p_now, np.asarray(vel_ne_mps, float)[:2], turn_rate_rps, lead_s)
         if self.index is None:
             self.index = self._initial_index(p, v)
         # Switch (possibly several times after a long gap) while the vehicle is past the end.
@@ -116,7 +123,7 @@ class PathFollower:
         nxt = self._next(self.index)
         speed = max(float(np.hypot(*v)), self.min_speed_mps)
         l1 = l1_distance_m(speed, self.period_s, self.damping)
-        _, cross = seg.locate(p)
+        _, cross = seg.locate(p_now)
         ref = self._reference_point(seg, None if nxt is None else self.segments[nxt], p, l1)
         if float(np.hypot(*v)) < self.min_speed_mps:  # too slow for a direction: fly the path tangent
             v = speed * _tangent_at(seg, p)
@@ -142,6 +149,22 @@ class PathFollower:
             return q
         # On a line aim at the foot of the perpendicular a little ahead, so eta < 90 deg.
         return q + 0.1 * l1 * seg.tangent
+
+
+def predict_on_turn(p_ne: np.ndarray, v_ne: np.ndarray, turn_rate_rps: float, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Position and velocity after dt_s on a constant-speed turn at turn_rate_rps (right +)."""
+    if dt_s <= 0.0:
+        return p_ne, v_ne
+    a = turn_rate_rps * dt_s
+    c, s = math.cos(a), math.sin(a)
+    # Rotating a NE vector clockwise (right turn) by a: (n, e) -> (n c - e s, n s + e c).
+    rot = np.array([[c, -s], [s, c]])
+    if abs(turn_rate_rps) < 1e-6:
+        disp = v_ne * dt_s
+    else:
+        # Integral of rot(w t) v over [0, dt]: (1/w) [[s, c - 1], [1 - c, s]] v.
+        disp = np.array([[s, c - 1.0], [1.0 - c, s]]) @ v_ne / turn_rate_rps
+    return p_ne + disp, rot @ v_ne
 
 
 def _arc_tangent(seg: ArcSegment, q: np.ndarray) -> np.ndarray:

@@ -19,6 +19,10 @@ t = (cos psi, sin psi), n = (-sin psi, cos psi) (right of t). Leg 0 runs along t
 C (C - L/2 t - R n -> C + L/2 t - R n), arc 1 turns right about C + L/2 t through 180 deg, leg 2
 runs back along -t on the right of C, arc 3 turns right about C - L/2 t. ccw mirrors n.
 R defaults to V^2 / (g tan(turn_bank)) with V the commanded airspeed (coordinated level turn).
+turn_bank defaults to 28 deg: 2 deg below the paper's 30 deg bank limit, so that the L1 law keeps
+authority to correct on the arc (the aircraft needs about 0.6 deg more than the ideal
+coordinated-turn bank); the peak bank in the turns then reaches the 30 deg limit. With
+turn_bank = limit the bank saturates on the arc and the aircraft drifts ~14 m outwards.
 """
 
 from __future__ import annotations
@@ -102,7 +106,7 @@ class RacetrackMission(_MissionBase):
         center: PointSpec
         leg_length_m: float = pydantic.Field(gt=0.0)
         turn_radius_m: float | None = pydantic.Field(default=None, gt=0.0)
-        turn_bank_deg: float = pydantic.Field(default=30.0, gt=0.0, lt=80.0)
+        turn_bank_deg: float = pydantic.Field(default=28.0, gt=0.0, lt=80.0)
         heading_deg: float = 0.0
         direction: Literal["cw", "ccw"] = "cw"
         altitude_m: float | None = None
