@@ -10,3 +10,4 @@ from testbench.sensors import (  # noqa: F401
     magnetometer,
     uwb,
 )
+from testbench.sensors import camera  # noqa: F401

@@ -79,7 +79,10 @@ class UwbParams(ParamsModel):
 
 def antenna_ned_m(truth: TruthState, lever_arm_b_m: np.ndarray) -> np.ndarray:
     """Antenna position in NED: CG position plus the body lever arm rotated by R_nb."""
-    return np.asarray(truth.pos_ned_m, float) + quat_to_dcm(truth.q_nb_wxyz) @ lever_arm_b_m
+    pos = np.asarray(truth.pos_ned_m, float)
+    if not lever_arm_b_m.any():
+        return pos
+    return pos + quat_to_dcm(truth.q_nb_wxyz) @ lever_arm_b_m
 
 
 @register("sensor", "uwb")
