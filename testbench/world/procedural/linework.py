@@ -26,6 +26,8 @@ def meander(rng: np.random.Generator, shape: tuple[int, int], step_px: float,
     for _ in range(max_steps):
         turn = 0.85 * turn + rng.normal(0.0, wiggle)
         heading += 0.35 * turn - 0.08 * (heading - mean_heading)
+        # bounded deviation: meanders, never loops back across itself
+        heading = mean_heading + float(np.clip(heading - mean_heading, -1.1, 1.1))
         p = pts[-1] + step_px * np.array([np.cos(heading), np.sin(heading)])
         pts.append(p)
         if not (-0.1 * w <= p[0] <= 1.1 * w and -0.1 * h <= p[1] <= 1.1 * h):
