@@ -25,11 +25,17 @@ _WGS84_LONLAT = pyproj.CRS.from_epsg(4326)
 
 
 def local_tmerc_crs(origin: GeodeticOrigin) -> pyproj.CRS:
-    """Transverse Mercator CRS centred on the origin (x = east m, y = north m)."""
+    """Transverse Mercator CRS centred on the origin (x = east m, y = north m).
+
+    Its scale factor is (R + alt) / R (R the Gaussian radius at the origin), so that distances
+    match the local NED plane at the origin's altitude, not at the ellipsoid.
+    """
     lat = np.degrees(origin.lat_rad)
     lon = np.degrees(origin.lon_rad)
+    r_m, r_n = geodesy.radii_of_curvature(origin.lat_rad)
+    k = 1.0 + origin.alt_m / float(np.sqrt(r_m * r_n))
     return pyproj.CRS.from_proj4(
-        f"+proj=tmerc +lat_0={lat:.12f} +lon_0={lon:.12f} +k=1 +x_0=0 +y_0=0 "
+        f"+proj=tmerc +lat_0={lat:.12f} +lon_0={lon:.12f} +k={k:.12f} +x_0=0 +y_0=0 "
         "+ellps=WGS84 +towgs84=0,0,0,0,0,0,0 +units=m +no_defs"
     )
 

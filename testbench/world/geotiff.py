@@ -97,7 +97,7 @@ class GeoRasterReader:
         t = np.linspace(0.0, 1.0, 33)
         cols = np.concatenate([t * w, np.full_like(t, w), (1 - t) * w, np.zeros_like(t)])
         rows = np.concatenate([np.zeros_like(t), t * h, np.full_like(t, h), (1 - t) * h])
-        xs, ys = self.ds.transform * (cols, rows)
+        xs, ys = _apply(self.ds.transform, cols, rows)
         n, e = self.frame.xy_to_ne(xs, ys)
         k = len(t)
         corners = np.stack([n[[0, k, 2 * k, 3 * k]], e[[0, k, 2 * k, 3 * k]]], axis=-1)
@@ -108,7 +108,7 @@ class GeoRasterReader:
         h, w = self.ds.height, self.ds.width
         cols = np.array([w / 2, w / 2 + 1, w / 2])
         rows = np.array([h / 2, h / 2, h / 2 + 1])
-        xs, ys = self.ds.transform * (cols, rows)
+        xs, ys = _apply(self.ds.transform, cols, rows)
         n, e = self.frame.xy_to_ne(xs, ys)
         dx = np.hypot(n[1] - n[0], e[1] - e[0])
         dy = np.hypot(n[2] - n[0], e[2] - e[0])
@@ -117,7 +117,7 @@ class GeoRasterReader:
     def ne_to_src_colrow(self, north_m, east_m):
         """Local NE (m) -> continuous source (col, row), pixel centres at integers."""
         x, y = self.frame.ne_to_xy(north_m, east_m)
-        col, row = ~self.ds.transform * (x, y)
+        col, row = _apply(~self.ds.transform, x, y)
         return np.asarray(col) - 0.5, np.asarray(row) - 0.5
 
     # -- reading --------------------------------------------------------------------------
@@ -223,6 +223,13 @@ class GeoRasterReader:
 
     def close(self) -> None:
         self.ds.close()
+
+
+def _apply(t, a, b):
+    """Affine t applied to arrays (a, b) -> (x, y)."""
+    a = np.asarray(a, float)
+    b = np.asarray(b, float)
+    return t.a * a + t.b * b + t.c, t.d * a + t.e * b + t.f
 
 
 def _remap(src: np.ndarray, map_c: np.ndarray, map_r: np.ndarray) -> np.ndarray:

@@ -1,0 +1,163 @@
+"""GeoTIFF maps on the local grid: georeference round trips in UTM and EPSG:4326, pixel-centre
+conventions, nodata masks, window reads vs full reads, error messages."""
+
+import math
+
+import numpy as np
+import pyproj
+import pytest
+from rasterio.transform import from_origin
+
+from testbench.core.errors import InputError
+from testbench.world.elevation import ElevationModel, FlatElevation
+from testbench.world.geotiff import MapSource
+from testbench.world.georef import LocalFrame
+import rasterio
+
+
+def write_tif(path, data, crs, transform, nodata=None, dtype=None):
+    """data (C, H, W) or (H, W)."""
+    a = data if data.ndim == 3 else data[None]
+    prof = dict(driver="GTiff", width=a.shape[2], height=a.shape[1], count=a.shape[0],
+                dtype=dtype or a.dtype.name, transform=transform)
+    if crs is not None:
+        prof["crs"] = crs
+    if nodata is not None:
+        prof["nodata"] = nodata
+    with rasterio.open(path, "w", **prof) as dst:
+        dst.write(a)
+    return str(path)
+
+
+
+def _ramp(h, w):
+    """3 bands whose values encode the pixel: R = col, G = row, B = 7."""
+    r = np.tile(np.arange(w, dtype=np.uint8), (h, 1))
+    g = np.tile(np.arange(h, dtype=np.uint8)[:, None], (1, w))
+    return np.stack([r, g, np.full((h, w), 7, np.uint8)])
+
+
+@pytest.mark.parametrize("crs", ["EPSG:32614", "EPSG:4326"])
+def test_sample_known_pixel_centres(tmp_path, origin, crs):
+    frame = LocalFrame(origin, crs)
+    h, w = 120, 150
+    if crs == "EPSG:4326":
+        res = 2.0e-5  # deg (~1.5-2.2 m)
+    else:
+        res = 2.0
+    x0, y0 = frame.ne_to_xy(0.0, 0.0)
+    left, top = float(x0) - 40 * res, float(y0) + 50 * res
+    path = write_tif(tmp_path / "m.tif", _ramp(h, w), crs, from_origin(left, top, res, res))
+    m = MapSource(path, origin)
+    rows = np.array([0, 10, 50, 77, 119])
+    cols = np.array([0, 33, 40, 140, 149])
+    x = left + (cols + 0.5) * res
+    y = top - (rows + 0.5) * res
+    n, e = frame.xy_to_ne(x, y)
+    v, ok = m.sample(n, e)
+    assert ok.all()
+    np.testing.assert_allclose(v[:, 0], cols, atol=1e-6)
+    np.testing.assert_allclose(v[:, 1], rows, atol=1e-6)
+    # half a pixel inside, bilinear midway
+    n2, e2 = frame.xy_to_ne(left + 11.0 * res, top - 21.0 * res)
+    v2, ok2 = m.sample(n2, e2)
+    np.testing.assert_allclose(v2[..., :2], [10.5, 20.5], atol=1e-6)
+    # read_local puts the same values at the same local points (cv2.remap: 1/32 px)
+    raster = m.read_local(float(n.min()) - 20, float(n.max()) + 20, float(e.min()) - 20,
+                          float(e.max()) + 20, 1.0)
+    from testbench.world.raster import sample_bilinear
+    vv, okk = sample_bilinear(raster, n[1:4], e[1:4])
+    assert okk.all()
+    np.testing.assert_allclose(vv[:, 0], cols[1:4], atol=0.15)
+    np.testing.assert_allclose(vv[:, 1], rows[1:4], atol=0.15)
+    # the map's footprint contains the origin, and off-map points are invalid
+    fp = m.footprint
+    assert fp.north_min_m < 0 < fp.north_max_m and fp.east_min_m < 0 < fp.east_max_m
+    _, ok3 = m.sample([fp.north_max_m + 10.0], [0.0])
+    assert not ok3.any()
+
+
+def test_local_frame_round_trip(origin):
+    for crs in ("EPSG:32614", "EPSG:4326", "EPSG:3857"):
+        f = LocalFrame(origin, crs)
+        n = np.array([-4000.0, 0.0, 1234.5])
+        e = np.array([2500.0, 0.0, -3000.0])
+        n2, e2 = f.xy_to_ne(*f.ne_to_xy(n, e))
+        np.testing.assert_allclose(n2, n, atol=5e-3)  # millimetres over 5 km
+        np.testing.assert_allclose(e2, e, atol=5e-3)
+
+
+def test_utm_north_is_local_north_near_origin(tmp_path, origin):
+    # A UTM map: moving one pixel up the image moves north by ~res (grid convergence small).
+    f = LocalFrame(origin, "EPSG:32614")
+    x, y = f.ne_to_xy(0.0, 0.0)
+    n, e = f.xy_to_ne(x, y + 100.0)
+    assert abs(n - 100.0) < 1.5 and abs(e) < 3.0
+
+
+def test_nodata_mask_and_window_vs_full(tmp_path, origin):
+    f = LocalFrame(origin, "EPSG:32614")
+    x0, y0 = f.ne_to_xy(0.0, 0.0)
+    rng = np.random.default_rng(1)
+    data = rng.integers(1, 255, (3, 200, 200)).astype(np.uint8)
+    data[:, 50:60, 70:90] = 0
+    path = write_tif(tmp_path / "n.tif", data, "EPSG:32614", from_origin(float(x0) - 200, float(y0) + 200, 2.0, 2.0), nodata=0)
+    m = MapSource(path, origin)
+    full = m.read_local(-220, 220, -220, 220, 2.0)
+    # the nodata block maps to invalid pixels; off-map border invalid; centre valid
+    assert not full.valid[:5].any() or full.valid.mean() < 1
+    n_hole, e_hole = f.xy_to_ne(float(x0) - 200 + 80 * 2.0 + 1, float(y0) + 200 - 55 * 2.0 - 1)
+    r, c = full.ne_to_rowcol(n_hole, e_hole)
+    assert not full.valid[int(round(float(r))), int(round(float(c)))]
+    assert full.valid[110, 110]
+    v, ok = m.sample(n_hole, e_hole)
+    assert not ok
+    # a sub-window on the same grid equals the corresponding part of the full read
+    sub = m.read_local(-100, 60, -40, 140, 2.0)
+    r0 = int(round((full.north0_m - sub.north0_m) / 2.0))
+    c0 = int(round((sub.east0_m - full.east0_m) / 2.0))
+    part = full.data[r0:r0 + sub.shape[0], c0:c0 + sub.shape[1]]
+    both = sub.valid & full.valid[r0:r0 + sub.shape[0], c0:c0 + sub.shape[1]]
+    diff = np.abs(part.astype(int) - sub.data.astype(int))[both]
+    assert diff.max() <= 1
+    # coarse (decimated) read: mean brightness preserved
+    coarse = m.read_local(-180, 180, -180, 180, 8.0)
+    fine = m.read_local(-180, 180, -180, 180, 2.0)
+    assert abs(coarse.data[coarse.valid].mean() - fine.data[fine.valid].mean()) < 3.0
+
+
+def test_errors(tmp_path, origin):
+    with pytest.raises(InputError, match="no such file"):
+        MapSource(tmp_path / "missing.tif", origin)
+    p = write_tif(tmp_path / "nogeo.tif", np.zeros((3, 10, 10), np.uint8), None,
+                  rasterio.Affine.identity())
+    with pytest.raises(InputError) as ei:
+        MapSource(p, origin)
+    msg = str(ei.value)
+    assert "no georeference" in msg and "gdal_translate -a_srs" in msg and "\n" not in msg
+    bad = tmp_path / "bad.tif"
+    bad.write_text("not a tiff")
+    with pytest.raises(InputError, match="not a readable raster"):
+        MapSource(bad, origin)
+
+
+def test_grey_and_elevation(tmp_path, origin):
+    f = LocalFrame(origin, "EPSG:4326")
+    lon, lat = f.ne_to_lonlat_deg(0.0, 0.0)
+    res = 1e-4
+    z = np.full((50, 60), 600.0, np.float32)
+    z[:, 30:] = 650.0
+    z[0:5, 0:5] = -32767
+    p = write_tif(tmp_path / "dem.tif", z.astype(np.int16), "EPSG:4326",
+                  from_origin(float(lon) - 30 * res, float(lat) + 25 * res, res, res), nodata=-32767)
+    dem = ElevationModel(p, origin)
+    hgt, ok = dem.height_and_valid([0.0, 0.0, 1e5], [-200.0, 200.0, 0.0])
+    np.testing.assert_allclose(hgt[:2], [100.0, 150.0], atol=1e-3)  # DEM minus origin altitude
+    assert list(ok) == [True, True, False] and hgt[2] == 0.0
+    r = dem.read_local(-150, 150, -150, 150, 10.0)
+    assert r.data.dtype == np.float32 and r.valid.any()
+    assert FlatElevation(3.0).height_m([1.0, 2.0], 0.0).tolist() == [3.0, 3.0]
+    g = write_tif(tmp_path / "g.tif", np.full((1, 20, 20), 99, np.uint8), "EPSG:4326",
+                  from_origin(float(lon) - 10 * res, float(lat) + 10 * res, res, res))
+    v, ok = MapSource(g, origin).sample(0.0, 0.0)
+    assert ok and v.tolist() == [99.0, 99.0, 99.0]
