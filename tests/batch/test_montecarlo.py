@@ -1,0 +1,79 @@
+"""Monte Carlo: local pool, failure isolation, resume, and a loopback Dask cluster giving the
+same per-run metrics as the local pool."""
+
+import json
+import shutil
+from pathlib import Path
+
+import pyarrow.parquet as pq
+import pytest
+
+from testbench.batch import BatchPlan, Vary, run_batch
+from testbench.core.errors import InputError
+
+REPO = Path(__file__).resolve().parents[2]
+SCENARIO = str(REPO / "scenarios" / "fixedwing_racetrack.yaml")
+SHORT = ("duration_s=6",)
+WALL_DEPENDENT = {"real_time_factor", "wall_time_s", "worker_wall_s"}
+
+
+def _metrics(row):
+    return {k: v for k, v in row.items() if k not in WALL_DEPENDENT and isinstance(v, float)}
+
+
+@pytest.fixture(scope="module")
+def local_batch(tmp_path_factory):
+    out = tmp_path_factory.mktemp("mc") / "local"
+    # run 1 draws an impossible initial altitude (below ground) and must fail alone.
+    plan = BatchPlan(SCENARIO, 3, 4, SHORT, (Vary.parse("vehicles.uav0.initial.altitude_m=choice(800, -5)"),))
+    return plan, out, run_batch(plan, out, workers=2, report=True)
+
+
+def test_failed_run_is_recorded_and_others_finish(local_batch):
+    plan, out, result = local_batch
+    status = {r["run"]: r["status"] for r in result.rows}
+    alts = {r["run"]: r["vary.vehicles.uav0.initial.altitude_m"] for r in result.rows}
+    assert len(result.rows) == 3
+    for run, alt in alts.items():
+        if alt < 0:
+            assert status[run] == "error"
+            assert "below the terrain" in next(r["error"] for r in result.rows if r["run"] == run)
+        else:
+            assert status[run] == "passed"
+    assert any(a < 0 for a in alts.values()) and any(a > 0 for a in alts.values()), "draws should cover both cases"
+    table = pq.read_table(out / "runs.parquet").to_pandas()
+    assert list(table["run"]) == [0, 1, 2]
+    assert {"seed_entropy", "status", "error", "control.altitude_error_m.rms"} <= set(table.columns)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["runs_done"] == 3 and summary["status_counts"].get("error") == sum(a < 0 for a in alts.values())
+    assert (out / "report.html").stat().st_size > 1000
+
+
+def test_resume_skips_finished_runs_and_reproduces(local_batch, tmp_path):
+    plan, out, result = local_batch
+    copy = tmp_path / "resume"
+    shutil.copytree(out, copy)
+    good = next(r for r in result.rows if r["status"] == "passed")
+    shutil.rmtree(copy / "runs" / f"run_{good['run']:05d}")  # as if killed mid-run
+    again = run_batch(plan, copy, workers=1, report=False)
+    assert again.skipped == 2
+    redone = next(r for r in again.rows if r["run"] == good["run"])
+    assert _metrics(redone) == _metrics(good)
+
+
+def test_resume_refuses_a_different_batch(local_batch):
+    plan, out, _ = local_batch
+    other = BatchPlan(plan.scenario, plan.runs, plan.seed + 1, plan.overrides, plan.vary)
+    with pytest.raises(InputError, match="different batch"):
+        run_batch(other, out, workers=1, report=False)
+
+
+def test_dask_loopback_cluster_matches_local_pool(local_batch, tmp_path):
+    from distributed import LocalCluster
+
+    plan, _, result = local_batch
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None) as cluster:
+        dask = run_batch(plan, tmp_path / "dask", scheduler=cluster.scheduler_address, report=False)
+    assert [r["status"] for r in dask.rows] == [r["status"] for r in result.rows]
+    for a, b in zip(dask.rows, result.rows):
+        assert _metrics(a) == _metrics(b)
