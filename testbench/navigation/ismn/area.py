@@ -85,10 +85,11 @@ class AreaMatcherBase(SceneMatcher):
     class Params(ParamsModel):
         feature: str = "gradmag"  # appearance-robust image: gradmag | clahe
         coarse_size_px: int = 256  # the coarse level's larger side is at most this
-        tiles_x: int = 5
-        tiles_y: int = 4
+        tiles_x: int = 7  # candidate tile grid
+        tiles_y: int = 5
+        max_tiles: int = 16  # the most textured valid candidates are refined
         tile_px: int = 96  # tile side at full resolution (smaller when the frame is small)
-        tile_radius_px: int = 3  # search radius of tiles per level (coarsest level: +global slack)
+        tile_radius_px: int = 3  # search radius of tiles per level (+2 at the coarsest level)
         min_tile_ncc: float = 0.15
         ransac_px: float = 2.0
 
@@ -117,86 +118,101 @@ class AreaMatcherBase(SceneMatcher):
         ortho_px, map_px, tile_ncc = self._tiles(pyr_o, pyr_m, coarse_o, coarse_m, origin, off_L * s, L)
         offset = off_L * s
         cov = np.eye(2) * (0.5 * s) ** 2
-        inlier_frac = 0.0
-        if len(ortho_px) >= 6:
+        n_in, inlier_frac = 0, 0.0
+        if len(ortho_px) >= 8:  # tiles agree on one homography (smooth distortion allowed)
             H, inl = cv2.findHomography(ortho_px, map_px, cv2.USAC_MAGSAC, p.ransac_px)
-            if H is not None:
-                inl = inl.ravel().astype(bool)
-                inlier_frac = float(inl.mean())
-                ortho_px, map_px, tile_ncc = ortho_px[inl], map_px[inl], tile_ncc[inl]
-                pred = cv2.perspectiveTransform(ortho_px[:, None, :], H)[:, 0, :]
-                resid = map_px - pred
-                dof = max(1, len(resid) - 8)
-                cov = np.eye(2) * max(float((resid**2).sum()) / (2 * dof), 0.05)
-            else:
-                ortho_px = map_px = np.zeros((0, 2))
-        elif len(ortho_px) > 0:
-            inlier_frac = len(ortho_px) / max(1, p.tiles_x * p.tiles_y) * 0.5
-        if len(ortho_px) > 0:
+            inl = np.zeros(len(ortho_px), bool) if H is None else inl.ravel().astype(bool)
+        elif len(ortho_px) >= 3:  # too few for a homography: agree on the median shift
+            d = map_px - ortho_px
+            inl = np.hypot(*(d - np.median(d, axis=0)).T) < 2.0 * p.ransac_px
+        else:
+            inl = np.zeros(len(ortho_px), bool)
+        if inl.any():
+            n_in, inlier_frac = int(inl.sum()), float(inl.mean())
+            ortho_px, map_px = ortho_px[inl], map_px[inl]
             offset = np.median(map_px - ortho_px - origin, axis=0)
-        quality = q_global * (inlier_frac if len(ortho_px) >= 6 else 0.5 * inlier_frac)
+            if n_in >= 8:
+                pred = cv2.perspectiveTransform(ortho_px[:, None, :], H)[:, 0, :]
+                dof = n_in - 8
+            else:
+                pred = ortho_px + np.median(map_px - ortho_px, axis=0)
+                dof = n_in - 1
+            resid = map_px - pred
+            var = float((resid**2).sum()) / (2 * dof) if dof > 0 else 0.25
+            cov = np.eye(2) * max(var, 0.05)
+        else:
+            ortho_px = map_px = np.zeros((0, 2))
+        # A unique global peak, tiles that agree, and enough of them.
+        quality = q_global * inlier_frac * min(1.0, n_in / 8.0)
         return MatchResult(offset, ortho_px if len(ortho_px) else None, map_px if len(map_px) else None,
                            float(np.clip(quality, 0, 1)), cov, float(peak), self.registered_name)
 
     def _tiles(self, pyr_o, pyr_m, coarse_o, coarse_m, origin0, offset0, L):
         """Coarse-to-fine tile search; returns (ortho_px, map_px, ncc) at full resolution.
 
-        Features are computed on the whole image at the coarse level L and on crops around each
-        tile below it (cheap: only the tiles' pixels are transformed)."""
+        Candidate tiles lie on a tiles_x x tiles_y grid; those fully inside the valid ortho area
+        are ranked by texture (coarse feature variance) and the best max_tiles are refined.
+        Levels visited: L (whole-image coarse features), L-2 when L >= 4, then 0 (features on
+        crops around each tile only). The radius at each finer level covers the coarser level's
+        half-pixel uncertainty plus tile_radius_px."""
         p = self.p
         v0 = pyr_o[0][1]
         Ho, Wo = v0.shape
-        T0 = int(min(p.tile_px, Wo // p.tiles_x, Ho // p.tiles_y))
-        if T0 < 16:
-            return np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0)
-        cell_w, cell_h = Wo / p.tiles_x, Ho / p.tiles_y
-        o_list, m_list, n_list = [], [], []
+        sL = 2**L
+        T0 = int(min(p.tile_px, Wo // max(2, p.tiles_x - 1), Ho // max(2, p.tiles_y - 1))) // sL * sL
+        empty = np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0)
+        if T0 < max(16, 8 * sL):
+            return empty
+        cands = []
         for j in range(p.tiles_y):
             for i in range(p.tiles_x):
-                x0 = int(round((i + 0.5) * cell_w - T0 / 2))
-                y0 = int(round((j + 0.5) * cell_h - T0 / 2))
+                x0 = int(round(i * (Wo - T0) / max(1, p.tiles_x - 1))) // sL * sL
+                y0 = int(round(j * (Ho - T0) / max(1, p.tiles_y - 1))) // sL * sL
                 if v0[y0:y0 + T0, x0:x0 + T0].mean() < 0.98:
                     continue
-                off = np.array(offset0, float)  # full-resolution offset of this tile
-                ncc = -1.0
-                for lev in range(L, -1, -1):
-                    s = 2**lev
-                    T = T0 // s
-                    if T < 8:
-                        continue
-                    go, vo = pyr_o[lev]
-                    gm, vm = pyr_m[lev]
-                    tx, ty = x0 // s, y0 // s
-                    r = p.tile_radius_px + (2 if lev == L else 0)
-                    ox, oy = (tx + (origin0[0] + off[0]) / s, ty + (origin0[1] + off[1]) / s)
-                    mx, my = int(round(ox)) - r, int(round(oy)) - r
-                    if mx < 0 or my < 0 or mx + T + 2 * r > gm.shape[1] or my + T + 2 * r > gm.shape[0]:
-                        ncc = -1.0
-                        break
-                    if vm[my:my + T + 2 * r, mx:mx + T + 2 * r].mean() < 0.95:
-                        ncc = -1.0
-                        break
-                    if lev == L:
-                        tmpl = coarse_o[0][ty:ty + T, tx:tx + T]
-                        region = coarse_m[0][my:my + T + 2 * r, mx:mx + T + 2 * r]
-                    else:
-                        tmpl = feature_crop(go, vo, tx, ty, T, T, p.feature)
-                        region = feature_crop(gm, vm, mx, my, T + 2 * r, T + 2 * r, p.feature)
-                    if float(tmpl.std()) < 1e-4:
-                        ncc = -1.0
-                        break
-                    res = cv2.matchTemplate(region, tmpl, cv2.TM_CCOEFF_NORMED)
-                    _, ncc, _, (px, py) = cv2.minMaxLoc(res)
-                    sx, sy = subpixel_peak(res, px, py)
-                    off = np.array([(mx + sx - tx) * s - origin0[0], (my + sy - ty) * s - origin0[1]])
-                if ncc < p.min_tile_ncc:
-                    continue
-                c = np.array([x0 + (T0 - 1) / 2.0, y0 + (T0 - 1) / 2.0])
-                o_list.append(c)
-                m_list.append(c + origin0 + off)
-                n_list.append(ncc)
+                tex = float(coarse_o[0][y0 // sL:(y0 + T0) // sL, x0 // sL:(x0 + T0) // sL].var())
+                cands.append((tex, x0, y0))
+        cands.sort(reverse=True)
+        levels = [L] + ([L - 2] if L >= 4 else []) + ([0] if L > 0 else [])
+        o_list, m_list, n_list = [], [], []
+        for _, x0, y0 in cands[: p.max_tiles]:
+            off = np.array(offset0, float)  # full-resolution offset of this tile
+            ncc, prev = -1.0, None
+            for lev in levels:
+                s = 2**lev
+                T = T0 // s
+                go, vo = pyr_o[lev]
+                gm, vm = pyr_m[lev]
+                tx, ty = x0 // s, y0 // s
+                r = p.tile_radius_px + (2 if prev is None else 2 ** (prev - lev) // 2)
+                prev = lev
+                mx = int(round(tx + (origin0[0] + off[0]) / s)) - r
+                my = int(round(ty + (origin0[1] + off[1]) / s)) - r
+                if mx < 0 or my < 0 or mx + T + 2 * r > gm.shape[1] or my + T + 2 * r > gm.shape[0] \
+                        or vm[my:my + T + 2 * r, mx:mx + T + 2 * r].mean() < 0.95:
+                    ncc = -1.0
+                    break
+                if lev == L:
+                    tmpl = coarse_o[0][ty:ty + T, tx:tx + T]
+                    region = coarse_m[0][my:my + T + 2 * r, mx:mx + T + 2 * r]
+                else:
+                    tmpl = feature_crop(go, vo, tx, ty, T, T, p.feature)
+                    region = feature_crop(gm, vm, mx, my, T + 2 * r, T + 2 * r, p.feature)
+                if float(tmpl.std()) < 1e-4:
+                    ncc = -1.0
+                    break
+                res = cv2.matchTemplate(region, tmpl, cv2.TM_CCOEFF_NORMED)
+                _, ncc, _, (px, py) = cv2.minMaxLoc(res)
+                sx, sy = subpixel_peak(res, px, py)
+                off = np.array([(mx + sx - tx) * s - origin0[0], (my + sy - ty) * s - origin0[1]])
+            if ncc < p.min_tile_ncc:
+                continue
+            c = np.array([x0 + (T0 - 1) / 2.0, y0 + (T0 - 1) / 2.0])
+            o_list.append(c)
+            m_list.append(c + origin0 + off)
+            n_list.append(ncc)
         if not o_list:
-            return np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0)
+            return empty
         return np.array(o_list), np.array(m_list), np.array(n_list)
 
     def _global(self, f_o, f_m, origin, radius):
