@@ -167,7 +167,14 @@ def linearize(
 
 def linearize_exec(fdm: jsbsim.FGFDMExec, trim_result: TrimResult) -> LinearModel:
     """Linearise a model already trimmed in `fdm` (e.g. by trim.trimmed_exec)."""
+    dt_s = fdm.get_delta_t()
     lin = jsbsim.FGLinearization(fdm)
+    # FGLinearization leaves the integration suspended (dt = 0): resume it so that `fdm`
+    # can be flown on from the trim, e.g. to compare the linear and nonlinear responses.
+    if fdm.integration_suspended():
+        fdm.resume_integration()
+    if fdm.get_delta_t() != dt_s:
+        fdm.set_dt(dt_s)
     a_raw, b_raw, _c, _d = (np.asarray(m, dtype=float) for m in lin.state_space)
     names_raw = list(lin.x_names)
     keep = [i for i, n in enumerate(names_raw) if n not in _DROP]
