@@ -2,4 +2,4 @@
 fixed-wing autopilot (LQI longitudinal, roll/yaw loops) and the multirotor cascade with its
 motor mixer. Importing this package registers the controllers and missions."""
 
-from testbench.control import fixed_wing, missions  # noqa: F401  (registration)
+from testbench.control import fixed_wing, missions, multirotor  # noqa: F401  (registration)

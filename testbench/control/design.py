@@ -2,9 +2,9 @@
 
 Method
 1. Trim the aircraft in level flight at the design airspeed and altitude and linearise it
-   (JSBSim trim + FGLinearization, converted to SI: states V m/s, alpha rad, theta rad,
-   q rad/s, h m; beta, phi, p, r, psi; inputs throttle, aileron, elevator, rudder in
-   normalised command units).
+   with testbench.dynamics.linear (JSBSim trim + FGLinearization in SI: airspeed, alpha,
+   theta, q, beta, phi, p, psi, r, altitude; inputs throttle, aileron, elevator, rudder in
+   normalised command units, so gains apply directly to SurfaceCommand).
 2. Longitudinal, LQR with integral action (LQI). The longitudinal model in (V, alpha, q,
    theta, h) is changed to the measurable states z = (V, gamma, q, theta, h), gamma = theta -
    alpha, by the similarity z = T^-1 x; it is augmented with the integrals of the V and h
@@ -30,14 +30,13 @@ import argparse
 import datetime
 import json
 import math
-import os
 from dataclasses import asdict, dataclass
 
 import control
 import numpy as np
 
 from testbench.control.gains import FixedWingGains
-from testbench.core.units import FT_TO_M, M_TO_FT, MPS_TO_KT, STANDARD_GRAVITY_MPS2
+from testbench.core.units import STANDARD_GRAVITY_MPS2
 
 # Bryson's rule: 1 / max^2 on the diagonal.
 LON_MAX_STATE = {"V": 1.0, "gamma": 0.05, "q": 0.3, "theta": 0.15, "h": 3.0, "iV": 4.0, "ih": 15.0}
@@ -70,56 +69,17 @@ class DesignResult:
 
 
 def linearize(aircraft: str, airspeed_mps: float, altitude_m: float) -> LinearFixedWing:
-    """Trim and linearise with JSBSim; states and inputs converted to SI (see module doc)."""
-    os.environ.setdefault("JSBSIM_DEBUG", "0")
-    import jsbsim
+    """Trim and linearise with testbench.dynamics.linear (JSBSim trim + FGLinearization, SI)."""
+    from testbench.dynamics.linear import linearize as dyn_linearize
 
-    from testbench.dynamics.catalog import aircraft_dir
-
-    root = aircraft_dir(aircraft)
-    fdm = jsbsim.FGFDMExec(None)
-    fdm.set_debug_level(0)
-    fdm.set_aircraft_path(str(root))
-    engines = root / aircraft / "Engines"
-    if engines.is_dir():
-        fdm.set_engine_path(str(engines))
-    fdm.load_model(aircraft)
-    fdm["ic/h-sl-ft"] = altitude_m * M_TO_FT
-    fdm["ic/vt-kts"] = airspeed_mps * MPS_TO_KT
-    fdm["ic/gamma-deg"] = 0.0
-    fdm.run_ic()
-    fdm["propulsion/set-running"] = -1
-    fdm["simulation/do_simple_trim"] = 1
+    lm = dyn_linearize(aircraft, airspeed_mps, altitude_m)
+    t = lm.trim
     trim = {
-        "throttle": fdm["fcs/throttle-cmd-norm"],
-        # Commands and JSBSim's trim settings add in the model's FCS: report the totals.
-        "elevator": fdm["fcs/elevator-cmd-norm"] + _prop(fdm, "fcs/pitch-trim-cmd-norm"),
-        "aileron": fdm["fcs/aileron-cmd-norm"] + _prop(fdm, "fcs/roll-trim-cmd-norm"),
-        "rudder": fdm["fcs/rudder-cmd-norm"] + _prop(fdm, "fcs/yaw-trim-cmd-norm"),
-        "theta_rad": fdm["attitude/theta-rad"],
-        "alpha_rad": fdm["aero/alpha-rad"],
+        "throttle": t.throttle_norm, "elevator": t.elevator_norm, "aileron": t.aileron_norm,
+        "rudder": t.rudder_norm, "theta_rad": t.theta_rad, "alpha_rad": t.alpha_rad,
     }
-    lin = jsbsim.FGLinearization(fdm)
-    x_names = tuple(lin.x_names)
-    u_names = tuple(lin.u_names)
-    A = np.array(lin.system_matrix, float)
-    B = np.array(lin.input_matrix, float)
-    # Feet -> metres for Vt and Alt (rows scale by FT_TO_M, columns by 1/FT_TO_M).
-    scale = np.ones(len(x_names))
-    for i, n in enumerate(x_names):
-        if n in ("Vt", "Alt"):
-            scale[i] = FT_TO_M
-    S = np.diag(scale)
-    A = S @ A @ np.linalg.inv(S)
-    B = S @ B
-    return LinearFixedWing(A, B, x_names, u_names, airspeed_mps, altitude_m, trim)
-
-
-def _prop(fdm, name: str) -> float:
-    try:
-        return float(fdm[name])
-    except Exception:  # a model without that property
-        return 0.0
+    return LinearFixedWing(np.asarray(lm.a), np.asarray(lm.b), tuple(lm.state_names), tuple(lm.input_names),
+                           airspeed_mps, altitude_m, trim)
 
 
 def _sub(lm: LinearFixedWing, xs: list[str], us: list[str]) -> tuple[np.ndarray, np.ndarray]:
@@ -133,7 +93,7 @@ def longitudinal_lqi(lm: LinearFixedWing) -> tuple[np.ndarray, np.ndarray, np.nd
 
     Returns (K, A_aug, B_aug, closed-loop poles).
     """
-    A, B = _sub(lm, ["Vt", "Alpha", "Q", "Theta", "Alt"], ["DeCmd", "ThtlCmd"])
+    A, B = _sub(lm, ["airspeed_mps", "alpha_rad", "q_rps", "theta_rad", "altitude_m"], ["elevator_norm", "throttle_norm"])
     # x = (V, alpha, q, theta, h) = T z with z = (V, gamma, q, theta, h): alpha = theta - gamma.
     T = np.eye(5)
     T[1, :] = [0.0, -1.0, 0.0, 1.0, 0.0]
@@ -152,8 +112,8 @@ def longitudinal_lqi(lm: LinearFixedWing) -> tuple[np.ndarray, np.ndarray, np.nd
 
 def roll_lqi(lm: LinearFixedWing) -> tuple[float, float, float, np.ndarray]:
     """(k_phi, k_p, k_i_phi, poles) from the roll-subsidence model with integral action."""
-    L_p = lm.A[lm.x_names.index("P"), lm.x_names.index("P")]
-    L_da = lm.B[lm.x_names.index("P"), lm.u_names.index("DaCmd")]
+    L_p = lm.A[lm.x_names.index("p_rps"), lm.x_names.index("p_rps")]
+    L_da = lm.B[lm.x_names.index("p_rps"), lm.u_names.index("aileron_norm")]
     # States (int(phi - phi_c), phi, p); aileron u = -K s with s the deviation from the command.
     A = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, L_p]])
     B = np.array([[0.0], [0.0], [L_da]])
@@ -168,8 +128,8 @@ def roll_lqi(lm: LinearFixedWing) -> tuple[float, float, float, np.ndarray]:
 
 def roll_bandwidth_rps(lm: LinearFixedWing, k_phi: float, k_p: float, k_i: float) -> float:
     """-3 dB bandwidth (rad/s) of phi / phi_c for the roll-subsidence model with the roll loop."""
-    L_p = lm.A[lm.x_names.index("P"), lm.x_names.index("P")]
-    L_da = lm.B[lm.x_names.index("P"), lm.u_names.index("DaCmd")]
+    L_p = lm.A[lm.x_names.index("p_rps"), lm.x_names.index("p_rps")]
+    L_da = lm.B[lm.x_names.index("p_rps"), lm.u_names.index("aileron_norm")]
     # s = (int(phi - phi_c), phi, p); aileron = k_phi (phi_c - phi) - k_p p - k_i int(phi - phi_c)
     A = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [-L_da * k_i, -L_da * k_phi, L_p - L_da * k_p]])
     B = np.array([[-1.0], [0.0], [L_da * k_phi]])
@@ -179,7 +139,7 @@ def roll_bandwidth_rps(lm: LinearFixedWing, k_phi: float, k_p: float, k_i: float
 
 def lateral_closed_loop(lm: LinearFixedWing, k_phi: float, k_p: float, k_i: float, k_r: float) -> np.ndarray:
     """Closed-loop A of (beta, phi, p, r, int phi) with the roll loop (phi_c = 0) and the yaw damper."""
-    A, B = _sub(lm, ["Beta", "Phi", "P", "R"], ["DaCmd", "DrCmd"])
+    A, B = _sub(lm, ["beta_rad", "phi_rad", "p_rps", "r_rps"], ["aileron_norm", "rudder_norm"])
     g_over_v = STANDARD_GRAVITY_MPS2 / lm.airspeed_mps
     # u = -F s, s = (beta, phi, p, r, iphi)
     F = np.array([
@@ -205,7 +165,7 @@ def design_fixed_wing(aircraft: str = "tb_fixedwing", airspeed_mps: float = 25.0
     K, _, _, lon_poles = longitudinal_lqi(lm)
     k_phi, k_p, k_i, roll_poles = roll_lqi(lm)
     # Yaw damper: root-locus scan of k_r (sign from the rudder's yaw effectiveness).
-    n_dr = lm.B[lm.x_names.index("R"), lm.u_names.index("DrCmd")]
+    n_dr = lm.B[lm.x_names.index("r_rps"), lm.u_names.index("rudder_norm")]
     best_kr, best_z = 0.0, -1.0
     for mag in YAW_DAMPER_SCAN:
         k_r = mag * np.sign(n_dr)  # rudder = -k_r r must oppose r: N_dr * (-k_r) r < 0

@@ -1,0 +1,70 @@
+"""Motor mixer (control allocation) of a multirotor from its sidecar geometry.
+
+Each motor i at r_i = (x_i, y_i, z_i) (body FRD, m, from the CG) pushes T_i >= 0 along -z_b and
+reacts a yaw torque -spin_i k_M T_i about +z_b (spin +1 = clockwise seen from above; k_M =
+yaw_torque_per_thrust_m). The wrench w = (T, L, M, N) (total thrust N; roll, pitch, yaw
+moments N m, FRD) is w = E t with t = (T_1..T_n) and
+
+    E = [[1, ..., 1], [-y_i ...], [x_i ...], [-spin_i k_M ...]]
+
+(the moment of (0, 0, -T_i) at r_i is (-y_i T_i, x_i T_i, 0)). Allocation is t = pinv(E) w;
+when that asks a motor for less than 0 or more than T_max, the yaw moment is reduced first
+and then the roll/pitch moments, keeping the total thrust: attitude before yaw, as in PX4.
+Commands are t / T_max (the models' motor command is the normalised thrust, see
+aircraft/tb_quad/tb_quad.xml).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+class Mixer:
+    """Thrust/moment allocation for n motors (see module docstring).
+
+    motors: list of {position_b_m: (3,), spin: +-1}; max_thrust_n: per motor;
+    yaw_torque_per_thrust_m: k_M.
+    """
+
+    def __init__(self, motors: list[dict], max_thrust_n: float, yaw_torque_per_thrust_m: float):
+        pos = np.array([m["position_b_m"] for m in motors], float)
+        spin = np.array([m["spin"] for m in motors], float)
+        self.n = len(motors)
+        self.max_thrust_n = float(max_thrust_n)
+        self.effectiveness = np.vstack([np.ones(self.n), -pos[:, 1], pos[:, 0], -spin * yaw_torque_per_thrust_m])
+        self.allocation = np.linalg.pinv(self.effectiveness)
+
+    def wrench(self, thrusts_n: np.ndarray) -> np.ndarray:
+        """Forward map: motor thrusts (n,) N -> (T, L, M, N)."""
+        return self.effectiveness @ np.asarray(thrusts_n, float)
+
+    def allocate(self, thrust_n: float, moments_b_nm: np.ndarray) -> np.ndarray:
+        """Motor thrusts (n,) N within [0, T_max] for the wanted thrust and moments (3,)."""
+        base = self.allocation[:, 0] * thrust_n
+        rp = self.allocation[:, 1:3] @ np.asarray(moments_b_nm[:2], float)
+        yaw = self.allocation[:, 3] * float(moments_b_nm[2])
+        t = base + rp + yaw
+        if np.all(t >= 0.0) and np.all(t <= self.max_thrust_n):
+            return t
+        # Scale the yaw part, then the roll/pitch part, into the feasible box.
+        k_yaw = _max_scale(base + rp, yaw, self.max_thrust_n)
+        t = base + rp + k_yaw * yaw
+        if np.all(t >= -1e-9) and np.all(t <= self.max_thrust_n + 1e-9):
+            return np.clip(t, 0.0, self.max_thrust_n)
+        k_rp = _max_scale(base, rp, self.max_thrust_n)
+        return np.clip(base + k_rp * rp, 0.0, self.max_thrust_n)
+
+    def commands(self, thrust_n: float, moments_b_nm: np.ndarray) -> tuple[float, ...]:
+        """Normalised motor commands in [0, 1] (thrust / T_max)."""
+        return tuple(float(v) for v in self.allocate(thrust_n, moments_b_nm) / self.max_thrust_n)
+
+
+def _max_scale(base: np.ndarray, part: np.ndarray, hi: float) -> float:
+    """Largest k in [0, 1] with 0 <= base + k part <= hi element-wise (base assumed inside)."""
+    k = 1.0
+    for b, p in zip(base, part):
+        if p > 0 and b + p > hi:
+            k = min(k, max(0.0, (hi - b) / p))
+        elif p < 0 and b + p < 0:
+            k = min(k, max(0.0, -b / p))
+    return k
