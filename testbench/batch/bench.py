@@ -1,0 +1,53 @@
+"""Benchmarks of whole runs: real-time factor of each shipped scenario (shortened, through the
+engine, cameras included where the scenario has them) and Monte Carlo scaling with 1 and 2
+local workers (same batch, same process, one after the other)."""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from pathlib import Path
+
+from testbench.batch.batch import run_batch
+from testbench.batch.plan import BatchPlan
+from testbench.sim.bench import SCENARIOS_DIR, scenario_rtf
+
+# Shipped scenario -> simulated seconds used for its real-time factor. Scenarios that need the
+# real geodata are measured only where it is available.
+RTF_DURATIONS_S = {
+    "fixedwing_racetrack": 120.0,
+    "multirotor_waypoints": 60.0,
+    "paper_ismn_800m": 60.0,
+    "ins_only_800m": 60.0,
+    "lowalt_ismn_150m": 30.0,
+    "paper_swarm_relnav": 20.0,
+    "swarm_fixedwing": 20.0,
+}
+
+
+def montecarlo_speedup(runs: int = 8, scenario: str = "fixedwing_racetrack", duration_s: float = 60.0) -> dict[str, float]:
+    """Throughput (runs per minute) with 1 and 2 workers, and their ratio."""
+    out: dict[str, float] = {}
+    path = str(SCENARIOS_DIR / f"{scenario}.yaml")
+    with tempfile.TemporaryDirectory() as tmp:
+        for workers in (1, 2):
+            plan = BatchPlan(path, runs, 1, (f"duration_s={duration_s}",), ())
+            t0 = time.perf_counter()
+            res = run_batch(plan, Path(tmp) / f"w{workers}", workers=workers, report=False)
+            wall = time.perf_counter() - t0
+            bad = [r for r in res.rows if r["status"] == "error"]
+            if bad:
+                raise RuntimeError(f"benchmark batch had failed runs: {bad[0]['error']}")
+            out[f"montecarlo.runs_per_min_{workers}_workers"] = runs / wall * 60.0
+    out["montecarlo.speedup_2_workers"] = out["montecarlo.runs_per_min_2_workers"] / out["montecarlo.runs_per_min_1_workers"]
+    return out
+
+
+def run_benchmarks() -> dict[str, float]:
+    figures: dict[str, float] = {}
+    for name, duration in RTF_DURATIONS_S.items():
+        if not (SCENARIOS_DIR / f"{name}.yaml").is_file():
+            continue
+        figures[f"scenarios.{name}.real_time_factor"] = scenario_rtf(name, duration)
+    figures.update(montecarlo_speedup())
+    return figures
