@@ -97,7 +97,8 @@ class IsmnPipeline:
         return -mean_h, height_fn
 
     def _gsd(self, height_m: float, fp) -> float:
-        g = self.p.gsd_m or getattr(self.reference_map, "gsd_m", None) or nadir_gsd_m(self.camera, height_m)
+        rm = self.reference_map
+        g = self.p.gsd_m or getattr(rm, "gsd_m", None) or getattr(rm, "native_gsd_m", None) or nadir_gsd_m(self.camera, height_m)
         g = max(float(g), nadir_gsd_m(self.camera, height_m) if self.p.gsd_m is None else 0.0)
         extent = max(fp[1] - fp[0], fp[3] - fp[2])
         return max(g, extent / self.p.max_ortho_px)
