@@ -1,0 +1,74 @@
+"""World benchmarks: procedural generation time, window reads from a 10 km x 10 km 1 m map.
+
+run_benchmarks() -> {"world.make_map_6km_1m_s", "world.read_local_10km_window_ms",
+"world.read_local_10km_coarse_ms", "world.read_local_10km_peak_mb"}.
+Peak memory is the traced (tracemalloc) peak of numpy/Python allocations during the read.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+import time
+import tracemalloc
+
+import cv2
+import numpy as np
+
+from testbench.core.interfaces import GeodeticOrigin
+
+_ORIGIN = GeodeticOrigin(math.radians(47.0), math.radians(-99.0), 500.0)
+
+
+def _write_10km_map(path: str) -> None:
+    """A 10 km x 10 km, 1 m GeoTIFF (10000^2 RGB): a 2.5 m procedural world upsampled in row
+    strips, so that writing it never holds the full-resolution image."""
+    import rasterio
+    from rasterio.enums import ColorInterp, Resampling
+
+    from testbench.world.procedural import make_world
+    from testbench.world.procedural.writer import _profile
+
+    rgb, _, _ = make_world("farmland", 10.0, 2.5, 1, "summer")
+    n = 10000
+    prof = _profile(_ORIGIN, (n, n), 1.0, 3, "uint8", 2)
+    with rasterio.open(path, "w", **prof) as dst:
+        strip = 1000
+        for r0 in range(0, n, strip):
+            src = rgb[int(r0 / 2.5):int((r0 + strip) / 2.5)]
+            up = cv2.resize(src, (n, strip), interpolation=cv2.INTER_LINEAR)
+            dst.write(np.moveaxis(up, -1, 0), window=rasterio.windows.Window(0, r0, n, strip))
+        dst.colorinterp = [ColorInterp.red, ColorInterp.green, ColorInterp.blue]
+        dst.build_overviews([2, 4, 8, 16, 32, 64], Resampling.average)
+
+
+def run_benchmarks(quick: bool = False) -> dict[str, float]:
+    from testbench.world.geotiff import MapSource
+    from testbench.world.procedural import make_world
+    from testbench.world.procedural.writer import write_world
+
+    out: dict[str, float] = {}
+    with tempfile.TemporaryDirectory() as d:
+        size = 2.0 if quick else 6.0
+        t0 = time.perf_counter()
+        rgb, z, v = make_world("farmland", size, 1.0, 7, "summer")
+        write_world(os.path.join(d, "w6"), rgb, z, v, _ORIGIN, 1.0)
+        out[f"world.make_map_{size:g}km_1m_s"] = time.perf_counter() - t0
+        del rgb, z, v
+        path = os.path.join(d, "big.tif")
+        _write_10km_map(path)
+        m = MapSource(path, _ORIGIN)
+        # footprint of a 1920x1080, 120 deg camera at 800 m: ~2.8 x 1.6 km; read at 1 m
+        tracemalloc.start()
+        t0 = time.perf_counter()
+        r = m.read_local(-800, 800, -1400, 1400, 1.0)
+        out["world.read_local_10km_window_ms"] = (time.perf_counter() - t0) * 1e3
+        out["world.read_local_10km_peak_mb"] = tracemalloc.get_traced_memory()[1] / 2**20
+        tracemalloc.stop()
+        assert r.valid.all()
+        t0 = time.perf_counter()
+        r = m.read_local(-5000, 5000, -5000, 5000, 10.0)  # whole map, coarse: overviews
+        out["world.read_local_10km_coarse_ms"] = (time.perf_counter() - t0) * 1e3
+        m.close()
+    return out
