@@ -121,6 +121,7 @@ class JSBSimDynamics(Dynamics):
 
         self.fdm = jsbsim.FGFDMExec(None)  # root = the jsbsim package (engines, systems)
         self.fdm.set_debug_level(0)
+        self.fdm.set_dt(self._dt_s)  # before loading: JSBSim filters fix their coefficients at load
         self.fdm.set_aircraft_path(str(aircraft_dir(aircraft)))
         own_engines = aircraft_dir(aircraft) / aircraft / "Engines"
         if own_engines.is_dir():
@@ -128,7 +129,6 @@ class JSBSimDynamics(Dynamics):
         if not self.fdm.load_model(aircraft):
             raise InputError(f"aircraft {aircraft!r}: JSBSim could not load its model")
         self.fdm.disable_output()  # bundled models may declare CSV outputs: never write files
-        self.fdm.set_dt(self._dt_s)
         pm = self.fdm.get_property_manager()
         self._nodes = [pm.get_node(name, False) for name in _READ]
         if any(n is None for n in self._nodes):
