@@ -98,6 +98,32 @@ class FixedWingController(Controller):
 
     def update(self, t_s: float, estimate: NavEstimate, reference=None) -> SurfaceCommand:
         """Surface/throttle command from the estimate (reference unused)."""
+        pos, vel = estimate.pos_ned_m, estimate.vel_ned_mps
+        phi = float(estimate.rpy_rad[0])
+        ground_speed = float(np.linalg.norm(vel))
+        turn_rate = G * math.tan(_clip(phi, -1.2, 1.2)) / max(ground_speed, 5.0)
+        out = self.follower.update(pos[:2], vel[:2], lead_s=self.params.roll_lead_s, turn_rate_rps=turn_rate)
+        h_cmd = self._alt_cmd(out.segment_index)
+        cmd = self.autopilot(t_s, estimate, out.bank_cmd_rad, h_cmd, self.airspeed_cmd_mps)
+        phi_c = out.bank_cmd_rad
+        seg = self.segments[out.segment_index]
+        on_leg = isinstance(seg, LineSegment) and seg.is_leg
+        nan2 = (float("nan"), float("nan"))
+        self._status = GuidanceStatus(
+            t_s=t_s,
+            leg_index=out.segment_index,
+            on_leg=on_leg,
+            alt_cmd_m=h_cmd,
+            airspeed_cmd_mps=self.airspeed_cmd_mps,
+            line_start_ne_m=tuple(float(c) for c in seg.start_ne_m) if on_leg else nan2,
+            line_end_ne_m=tuple(float(c) for c in seg.end_ne_m) if on_leg else nan2,
+            bank_cmd_rad=phi_c,
+            cross_track_est_m=out.cross_track_m,
+        )
+        return cmd
+
+    def autopilot(self, t_s: float, estimate: NavEstimate, phi_c: float, h_cmd: float, v_cmd: float) -> SurfaceCommand:
+        """Inner loops: bank phi_c (rad), altitude h_cmd (m above origin), airspeed v_cmd (m/s)."""
         g = self.gains
         dt = 0.0 if self._t_prev is None else max(0.0, t_s - self._t_prev)
         self._t_prev = t_s
@@ -110,13 +136,7 @@ class FixedWingController(Controller):
         gamma = math.asin(_clip(-float(vel[2]) / max(ground_speed, 1e-3), -1.0, 1.0))
         h = -float(pos[2])
 
-        # Lateral guidance.
-        turn_rate = G * math.tan(_clip(phi, -1.2, 1.2)) / max(ground_speed, 5.0)
-        out = self.follower.update(pos[:2], vel[:2], lead_s=self.params.roll_lead_s, turn_rate_rps=turn_rate)
-        phi_c = out.bank_cmd_rad
-
         # Altitude reference: rate-limited towards the command.
-        h_cmd = self._alt_cmd(out.segment_index)
         if self._h_ref is None:
             self._h_ref = h
         step = self.params.max_climb_rate_mps * dt
@@ -126,7 +146,7 @@ class FixedWingController(Controller):
 
         # Longitudinal LQI.
         q_r = G * math.sin(phi) * math.tan(_clip(phi, -1.2, 1.2)) / v_for_rates
-        e_v = v_air - self.airspeed_cmd_mps
+        e_v = v_air - v_cmd
         e_h = _clip(h - self._h_ref, -self.params.altitude_error_clip_m, self.params.altitude_error_clip_m)
         x = np.array([e_v, gamma - gamma_r, q - q_r, theta - g.trim_theta_rad, e_h, self._int_v, self._int_h])
         u = np.array([g.trim_elevator, g.trim_throttle]) - self._k_lon @ x
@@ -147,21 +167,6 @@ class FixedWingController(Controller):
             self._int_phi = _clip(self._int_phi + e_phi * dt, -0.5, 0.5)
         r_c = G * math.sin(phi) * math.cos(theta) / v_for_rates
         rudder = _clip(g.trim_rudder - g.k_r * (r - r_c), -1.0, 1.0)
-
-        seg = self.segments[out.segment_index]
-        on_leg = isinstance(seg, LineSegment) and seg.is_leg
-        nan2 = (float("nan"), float("nan"))
-        self._status = GuidanceStatus(
-            t_s=t_s,
-            leg_index=out.segment_index,
-            on_leg=on_leg,
-            alt_cmd_m=h_cmd,
-            airspeed_cmd_mps=self.airspeed_cmd_mps,
-            line_start_ne_m=tuple(float(c) for c in seg.start_ne_m) if on_leg else nan2,
-            line_end_ne_m=tuple(float(c) for c in seg.end_ne_m) if on_leg else nan2,
-            bank_cmd_rad=phi_c,
-            cross_track_est_m=out.cross_track_m,
-        )
         return SurfaceCommand(aileron=aileron, elevator=elevator, rudder=rudder, throttle=throttle)
 
     def status(self) -> GuidanceStatus:

@@ -123,6 +123,10 @@ class PathFollower:
         nxt = self._next(self.index)
         speed = max(float(np.hypot(*v)), self.min_speed_mps)
         l1 = l1_distance_m(speed, self.period_s, self.damping)
+        if isinstance(seg, ArcSegment):
+            # The L1 circle must cut the path circle (L1 < 2 R); on tight orbits shorten L1
+            # (on the circle the command stays V^2 / R exactly, only the gain off it rises).
+            l1 = min(l1, 1.5 * seg.radius_m)
         _, cross = seg.locate(p_now)
         ref = self._reference_point(seg, None if nxt is None else self.segments[nxt], p, l1)
         if float(np.hypot(*v)) < self.min_speed_mps:  # too slow for a direction: fly the path tangent

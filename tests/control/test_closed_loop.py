@@ -1,0 +1,95 @@
+"""Short closed-loop step responses on JSBSim against the designed bandwidths.
+
+Fixed wing (tb_fixedwing, trimmed at 25 m/s, 800 m): bank, altitude and airspeed steps through
+the autopilot's inner loops; multirotor (tb_quad): a short waypoint hop. The navigation
+estimate is built from truth here (tests only; controllers never see truth otherwise).
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from testbench.control import evaluate as ev
+from testbench.control.design import linearize, roll_bandwidth_rps, roll_lqi
+from testbench.control.fixed_wing import FixedWingController
+
+pytest.importorskip("jsbsim")
+
+
+@pytest.fixture(scope="module")
+def roll_bw():
+    lm = linearize("tb_fixedwing", 25.0, 800.0)
+    k_phi, k_p, k_i, _ = roll_lqi(lm)
+    return roll_bandwidth_rps(lm, k_phi, k_p, k_i)
+
+
+def _fixed_wing():
+    from testbench.dynamics.jsbsim_adapter import InitialCondition
+
+    ctx = ev.make_context()
+    mission = ev.racetrack_mission(ctx)
+    dyn = ev.make_dynamics("tb_fixedwing")
+    truth = dyn.reset(InitialCondition(pos_ned_m=(0.0, 0.0, -800.0), heading_rad=0.0, airspeed_mps=25.0))
+    ev.clear_trim_settings(dyn)
+    ctl = FixedWingController(FixedWingController.Params(), ctx=ctx, mission=mission, aircraft=dyn.aircraft_meta)
+    return dyn, ctl, truth
+
+
+def _step(dyn, ctl, truth, seconds, phi_c=0.0, dh=0.0, dv=0.0, rate=50.0):
+    h0 = -truth.pos_ned_m[2]
+    out = []
+    for _ in range(int(seconds * rate)):
+        cmd = ctl.autopilot(truth.t_s, ev.truth_to_estimate(truth), phi_c, h0 + dh, 25.0 + dv)
+        truth = dyn.step(cmd, 1.0 / rate)
+        out.append(truth)
+    return out
+
+
+def test_roll_step_within_designed_bandwidth(roll_bw):
+    dyn, ctl, truth = _fixed_wing()
+    phi_c = math.radians(20.0)
+    tr = _step(dyn, ctl, truth, 4.0, phi_c=phi_c)
+    t = np.array([x.t_s for x in tr]) - truth.t_s
+    phi = np.array([x.rpy_rad[0] for x in tr])
+    # A loop of bandwidth w reaches 90 % within about 2.2 / w (first order) plus the surface
+    # saturation of a 20 deg step: allow 3 / w.
+    t90 = t[np.argmax(phi >= 0.9 * phi_c)]
+    assert 0.0 < t90 <= 3.0 / roll_bw + 0.2
+    assert phi.max() <= phi_c * 1.15
+    assert abs(phi[-1] - phi_c) < math.radians(1.5)
+
+
+def test_altitude_step():
+    dyn, ctl, truth = _fixed_wing()
+    tr = _step(dyn, ctl, truth, 20.0, dh=5.0)
+    dh = np.array([-x.pos_ned_m[2] for x in tr]) + truth.pos_ned_m[2]
+    assert dh.max() < 5.0 + 1.0  # overshoot < 20 %
+    assert abs(dh[-1] - 5.0) < 0.5
+    assert abs(tr[-1].airspeed_mps - 25.0) < 0.5  # the LQI keeps airspeed through the climb
+
+
+def test_airspeed_step():
+    dyn, ctl, truth = _fixed_wing()
+    tr = _step(dyn, ctl, truth, 20.0, dv=2.0)
+    v = np.array([x.airspeed_mps for x in tr])
+    assert v.max() < 27.0 + 0.6
+    assert abs(v[-1] - 27.0) < 0.3
+    assert abs(-tr[-1].pos_ned_m[2] + truth.pos_ned_m[2]) < 1.0
+
+
+def test_multirotor_hop_reaches_waypoints_without_overshoot():
+    from testbench.control.evaluate_multirotor import multirotor_metrics, waypoint_mission
+    from testbench.control.multirotor import MultirotorController
+    from testbench.dynamics.jsbsim_adapter import InitialCondition
+
+    ctx = ev.make_context("q")
+    mission = waypoint_mission(ctx, points=[(10.0, 0.0), (10.0, 10.0)])
+    dyn = ev.make_dynamics("tb_quad", physics_rate_hz=200.0)
+    truth = dyn.reset(InitialCondition(pos_ned_m=(0.0, 0.0, -100.0)))
+    ctl = MultirotorController(MultirotorController.Params(), ctx=ctx, mission=mission, aircraft=dyn.aircraft_meta)
+    tr = ev.fly(dyn, ctl, 25.0, 100.0, truth, with_airspeed=False)
+    m = multirotor_metrics(tr, mission.waypoints_ned_m, np.array([0.0, 0.0, -100.0]))
+    assert m["reach_max_m"] <= 1.0
+    assert m["overshoot_max_m"] <= 3.0
+    assert m["final_position_error_m"] < 0.5
