@@ -175,7 +175,8 @@ class SurfaceCommand:
     """Fixed-wing actuator command: normalised surfaces in [-1, 1], throttle in [0, 1].
 
     Sign conventions are JSBSim's: positive elevator is trailing edge down (nose down),
-    positive aileron rolls left, positive rudder yaws left.
+    positive aileron rolls right, positive rudder yaws left (check a bundled model's own
+    FCS before relying on these for it).
     """
 
     aileron: float = 0.0

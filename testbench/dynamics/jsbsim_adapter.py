@@ -164,6 +164,12 @@ class JSBSimDynamics(Dynamics):
                 fdm["simulation/do_simple_trim"] = 1  # full longitudinal trim in level flight
             except jsbsim.TrimFailureError as exc:
                 log.warning("%s: JSBSim trim failed (%s); starting untrimmed", self.aircraft, exc)
+            # SurfaceCommand is absolute: JSBSim's trim leaves offsets in the *-trim-cmd-norm
+            # properties that the model adds to every command; the controller's first command
+            # (issued before the first step) carries the trim instead.
+            for name in ("fcs/pitch-trim-cmd-norm", "fcs/roll-trim-cmd-norm", "fcs/yaw-trim-cmd-norm"):
+                if self.fdm.get_property_manager().hasNode(name):
+                    fdm[name] = 0.0
         if alt - ground_m < 0.0:
             raise InputError(
                 f"vehicle {self.vehicle_id}: initial altitude {alt - o.alt_m:.1f} m is below the terrain "
