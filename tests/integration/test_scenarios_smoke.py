@@ -1,0 +1,36 @@
+"""Smoke run of every scenario file, shortened: it loads, flies, scores and reports through
+the real command line (in-process) and ends with a known exit status."""
+
+import json
+import os
+from pathlib import Path
+
+import pytest
+
+from testbench.cli import main
+
+REPO = Path(__file__).resolve().parents[2]
+SCENARIOS = sorted((REPO / "scenarios").glob("*.yaml"))
+SMOKE_DURATION_S = {"default": 6.0}
+
+
+@pytest.mark.parametrize("path", SCENARIOS, ids=[p.stem for p in SCENARIOS])
+def test_scenario_smoke(path, tmp_path, monkeypatch):
+    if "${TESTBENCH_DATA}" in path.read_text():
+        from tests.conftest import data_dir
+
+        d = data_dir()
+        if d is None:
+            pytest.skip(f"{path.name} needs the real geodata: set TESTBENCH_DATA to the shared data folder")
+        monkeypatch.setenv("TESTBENCH_DATA", str(d))
+    out = tmp_path / "run"
+    code = main(["run", str(path), "--set", f"duration_s={SMOKE_DURATION_S['default']}", "--out", str(out), "--quiet"])
+    # A shortened run may miss a threshold meant for the full flight (3), but must not crash,
+    # abort or reject its own scenario.
+    assert code in (0, 3), f"exit status {code}"
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["sim_time_s"] == pytest.approx(SMOKE_DURATION_S["default"])
+    assert (out / "telemetry.parquet").stat().st_size > 0
+    assert (out / "report.html").stat().st_size > 1000
+    for tum in (out / "trajectories").glob("*.tum"):
+        assert len(tum.read_text().splitlines()) >= 2
