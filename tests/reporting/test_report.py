@@ -1,0 +1,93 @@
+import argparse
+import base64
+import re
+
+import cv2
+import numpy as np
+import pytest
+
+from testbench.core.errors import InputError
+from testbench.reporting import build_report, write_html_report, write_pdf_report
+from testbench.scoring.synthetic import make_synthetic_run
+
+DATA_PNG = re.compile(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"')
+
+
+def n_colors(img: np.ndarray) -> int:
+    """Number of distinct RGB colours of a (h, w, 3) uint8 image."""
+    packed = img.reshape(-1, 3).astype(np.int32) @ np.array([1 << 16, 1 << 8, 1], np.int32)
+    return int(np.unique(packed).size)
+
+
+def decoded_images(html: str) -> list[np.ndarray]:
+    return [cv2.imdecode(np.frombuffer(base64.b64decode(b), np.uint8), cv2.IMREAD_COLOR) for b in DATA_PNG.findall(html)]
+
+
+def test_html_is_self_contained_and_ordered(html_report):
+    html = html_report.read_text()
+    assert "<script" not in html
+    # No external resource of any kind: every src/href is inline data or an in-page anchor.
+    refs = re.findall(r'(?:src|href)="([^"]*)"', html)
+    assert refs and all(r.startswith(("data:", "#")) for r in refs)
+    assert "url(" not in html and "@import" not in html
+    # Configuration and the pass/fail table come before any figure.
+    assert html.index("Configuration") < html.index("Thresholds") < html.index("<img")
+    for section in ("navigation", "control", "ismn", "relnav", "formation", "sensors"):
+        assert f'id="{section}"' in html
+
+
+def test_threshold_table_shows_failures_and_missing_keys(html_report):
+    html = html_report.read_text()
+    assert "FAILED" in html
+    row = re.search(r"<tr><td>not\.a\.metric</td>.*?</tr>", html).group(0)
+    assert "missing" in row and "FAIL" in row
+    row = re.search(r"<tr><td>relnav\.error_m\.max</td>.*?</tr>", html).group(0)
+    assert "PASS" in row
+
+
+def test_embedded_figures_decode_and_are_not_blank(html_report, synthetic_run):
+    imgs = decoded_images(html_report.read_text())
+    report = build_report(synthetic_run)
+    n_figs = sum(len(s.figures) for s in report.sections)
+    assert len(imgs) == n_figs >= 10  # trajectory, 2 error panels, CDF, control, ISMN x3, relnav, formation, NIS
+    for img in imgs:
+        assert img is not None and img.shape[0] > 100 and img.shape[1] > 100
+        assert img.std() > 10.0
+        assert n_colors(img) > 20
+
+
+def test_sections_without_data_are_omitted(tmp_path):
+    d = make_synthetic_run(tmp_path, np.random.default_rng(1), n_vehicles=1, duration_s=20.0, rate_hz=5.0,
+                           with_events=False, with_images=False)
+    (d / "events" / "corrections.parquet").unlink()
+    html = write_html_report(d).read_text()
+    assert 'id="navigation"' in html and "This scenario sets no thresholds" in html
+    for absent in ('id="ismn"', 'id="relnav"', 'id="formation"', "Correction consistency (NIS)", "NIS "):
+        assert absent not in html
+    assert "NEES position" in html  # the filter-consistency table still has the NEES rows
+    assert "no map preview" in html
+
+
+def test_pdf_has_every_figure(synthetic_run, tmp_path):
+    out = write_pdf_report(synthetic_run, tmp_path / "r.pdf")
+    data = out.read_bytes()
+    assert data.startswith(b"%PDF")
+    pages = len(re.findall(rb"/Type\s*/Page[^s]", data))
+    n_figs = sum(len(s.figures) for s in build_report(synthetic_run).sections)
+    assert pages >= n_figs + 2  # figures + the first page + the metrics listing
+
+
+def test_report_command(tmp_path):
+    from testbench.commands import report as cmd
+
+    run = make_synthetic_run(tmp_path / "run", np.random.default_rng(2), duration_s=10.0, rate_hz=2.0,
+                             with_events=False, with_images=False)
+    parser = argparse.ArgumentParser()
+    cmd.register(parser.add_subparsers())
+    args = parser.parse_args(["report", str(run), "--pdf", "--out", str(tmp_path / "x.html")])
+    assert args.handler(args) == 0
+    assert (tmp_path / "x.html").stat().st_size > 10_000
+    assert (run / "report.pdf").read_bytes().startswith(b"%PDF")
+    bad = parser.parse_args(["report", str(tmp_path / "nothing")])
+    with pytest.raises(InputError, match="not a run directory"):
+        bad.handler(bad)
