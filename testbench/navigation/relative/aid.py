@@ -1,0 +1,332 @@
+"""The relative-navigation aid "relnav": cameras + UWB -> per-neighbour relative estimates.
+
+Per camera frame: detect (full frame, or regions around predicted tracks), track in the image,
+decode LED IDs, and fuse each identified track's line of sight (eq. 17-18, rotated with the
+vehicle's OWN ESTIMATED attitude) in that neighbour's EKF; per UWB range: fuse it in the EKF of
+the peer with that ID (NLOS-gated). No measurement goes to the INS (process returns []);
+`controller_input()` hands the NeighbourTable to the formation controller.
+Nothing here reads another vehicle's state: only this vehicle's sensors and estimate.
+"""
+
+from __future__ import annotations
+
+import logging
+import zlib
+from typing import Any
+
+import numpy as np
+import pydantic
+
+from testbench.core import led_code
+from testbench.core.errors import InputError
+from testbench.core.interfaces import BuildContext, NavigationAid
+from testbench.core.messages import NavEstimate, UwbRange
+from testbench.core.registry import ParamsModel, build, register
+from testbench.core.rotations import quat_to_dcm
+from testbench.navigation.relative.diagnostics import RelnavDiagnostics, id_check
+from testbench.navigation.relative.frames import camera_model, frame_camera_name, frame_parts, is_camera_frame
+from testbench.navigation.relative.geometry import relative_from_bearing_range, undistort_normalized
+from testbench.navigation.relative.neighbour_filter import FilterSettings, NeighbourFilter, initial_covariance
+from testbench.navigation.relative.regions import detect_regions, merge_rois, roi_around
+from testbench.navigation.relative.tracking import Tracker, TrackerSettings
+from testbench.navigation.relative.types import NeighbourTable, RelativeEstimate
+
+log = logging.getLogger(__name__)
+
+
+class DetectorSpec(ParamsModel):
+    type: str = "led"
+    params: dict = {}
+
+
+class RoiParams(ParamsModel):
+    """enabled: detect/render only around predicted tracks between full frames;
+    full_frame_every: a full frame every N camera frames (finds new vehicles);
+    margin_px: region margin around a predicted box (grows by margin_per_miss_px per miss);
+    min_size_px: smallest region side."""
+
+    enabled: bool = True
+    full_frame_every: int = pydantic.Field(10, ge=1)
+    margin_px: float = pydantic.Field(24.0, ge=0)
+    margin_per_miss_px: float = pydantic.Field(12.0, ge=0)
+    min_size_px: int = pydantic.Field(48, ge=8)
+
+
+class FilterParams(ParamsModel):
+    sigma_accel_mps2: float = pydantic.Field(1.0, gt=0)
+    range_sigma_m: float = pydantic.Field(0.10, gt=0)
+    bearing_sigma_px: float = pydantic.Field(1.0, gt=0)
+    robust: bool = True
+    gate_prob: float = pydantic.Field(0.999, gt=0, lt=1)
+    max_consecutive_rejects: int = pydantic.Field(10, ge=0)
+    init_vel_sigma_mps: float = pydantic.Field(3.0, gt=0)
+
+
+class TrackerParams(ParamsModel):
+    n_init: int = pydantic.Field(3, ge=1)
+    max_misses: int = pydantic.Field(5, ge=0)
+    gate_prob: float = pydantic.Field(0.999, gt=0, lt=1)
+    id_confidence: float = pydantic.Field(0.99, gt=0, le=1)
+    p_chip: float = pydantic.Field(0.05, gt=0, lt=0.5)
+    accel_px_s2: float = pydantic.Field(60.0, gt=0)
+    search_phase: bool = False
+
+
+@register("aid", "relnav")
+class RelnavAid(NavigationAid):
+    """Relative navigation of one vehicle (see the module docstring).
+
+    Params: cameras (sensor names), detector {type, params}, uwb (sensor name or None),
+    uwb_lever_arm_b_m (own antenna; default: the UWB sensor's), led_rate_hz (default: the
+    first camera's rate), range_max_age_s (a range this recent may start a filter with a
+    bearing), stale_after_s (a neighbour with no update for this long leaves the table),
+    predicted_association (an undecoded track may feed the neighbour it uniquely matches),
+    log_rate_hz (rows of table "relnav"), seed (oracle noise when no rng is injected), roi,
+    filter, tracker.
+    """
+
+    class Params(ParamsModel):
+        cameras: list[str]
+        detector: DetectorSpec = DetectorSpec()
+        uwb: str | None = "uwb"
+        uwb_lever_arm_b_m: tuple[float, float, float] | None = None
+        led_rate_hz: float | None = pydantic.Field(None, gt=0)
+        range_max_age_s: float = pydantic.Field(0.5, gt=0)
+        stale_after_s: float = pydantic.Field(5.0, gt=0)
+        predicted_association: bool = True
+        log_rate_hz: float = pydantic.Field(2.0, gt=0)
+        seed: int = 0
+        roi: RoiParams = RoiParams()
+        filter: FilterParams = FilterParams()
+        tracker: TrackerParams = TrackerParams()
+
+    def __init__(self, params: "RelnavAid.Params", *, ctx: BuildContext, sensors: dict | None = None,
+                 onboard: dict | None = None, rng: np.random.Generator | None = None, **_: Any):
+        self.params = params
+        self.ctx = ctx
+        self.self_id = ctx.vehicle_id
+        self.ids = tuple(ctx.vehicle_ids)
+        if len(self.ids) > led_code.MAX_VEHICLES:
+            raise InputError(f"relnav: at most {led_code.MAX_VEHICLES} vehicles carry an LED ID (got {len(self.ids)})")
+        self.own_index = self.ids.index(self.self_id) if self.self_id in self.ids else None
+        sensors = sensors or {}
+        self.cams = {}
+        for name in params.cameras:
+            if name not in sensors:
+                raise InputError(f"relnav.cameras: no sensor named {name!r} on vehicle {self.self_id!r}")
+            self.cams[name] = camera_model(sensors[name], name)
+        self.cam_rate = {n: float(getattr(sensors[n], "rate_hz", 10.0)) for n in params.cameras}
+        self.led_rate_hz = float(params.led_rate_hz or next(iter(self.cam_rate.values()), 10.0))
+        uwb_sensor = sensors.get(params.uwb) if params.uwb else None
+        if params.uwb and uwb_sensor is None:
+            raise InputError(f"relnav.uwb: no sensor named {params.uwb!r} on vehicle {self.self_id!r}")
+        lever = params.uwb_lever_arm_b_m if params.uwb_lever_arm_b_m is not None else getattr(uwb_sensor, "lever", (0, 0, 0))
+        self.uwb_lever = np.asarray(lever, float)
+        if rng is None:
+            rng = np.random.default_rng(np.random.SeedSequence([params.seed, zlib.crc32(self.self_id.encode())]))
+        self.detector = build("detector", params.detector.type, params.detector.params, "relnav.detector", ctx=ctx, rng=rng)
+        tp = params.tracker
+        ts = TrackerSettings(n_init=tp.n_init, max_misses=tp.max_misses, gate_prob=tp.gate_prob, id_confidence=tp.id_confidence,
+                             p_chip=tp.p_chip, accel_px_s2=tp.accel_px_s2, search_phase=tp.search_phase)
+        self.trackers = {n: Tracker(len(self.ids), self.own_index, ts) for n in params.cameras}
+        self.fset = FilterSettings(**params.filter.model_dump())
+        self.filters: dict[str, NeighbourFilter] = {}
+        self.id_conf: dict[str, float] = {}
+        self.last_range: dict[str, tuple[float, float]] = {}
+        self.last_estimate: NavEstimate | None = None
+        self.t_s = 0.0
+        self._next_log_t = 0.0
+        self.counters = {"frames": 0, "detections": 0, "id_checks": 0, "id_wrong": 0, "bearings_used": 0, "predicted_assoc": 0}
+
+    # -- NavigationAid ---------------------------------------------------------------------
+
+    def accepts(self, measurement: Any) -> bool:
+        if isinstance(measurement, UwbRange):
+            return self.params.uwb is not None
+        return is_camera_frame(measurement) and frame_camera_name(measurement) in self.cams
+
+    def process(self, measurement: Any, estimate: NavEstimate) -> tuple[list, Any]:
+        self.last_estimate = estimate
+        self.t_s = max(self.t_s, float(measurement.t_s))
+        if isinstance(measurement, UwbRange):
+            self._range(measurement, estimate)
+            return [], None
+        return [], self._frame(measurement, estimate)
+
+    # -- UWB -------------------------------------------------------------------------------
+
+    def _range(self, m: UwbRange, est: NavEstimate) -> None:
+        if m.peer_id == self.self_id or not np.isfinite(m.range_m):
+            return
+        self.last_range[m.peer_id] = (float(m.t_s), float(m.range_m))
+        f = self.filters.get(m.peer_id)
+        if f is not None:
+            # One installation on every vehicle, peer attitude taken equal to ours: the antenna
+            # lever arms cancel (lever_diff = R_nb (l_peer - l_self) = 0).
+            f.update_range(m.t_s, m.range_m, np.zeros(3))
+
+    # -- cameras ---------------------------------------------------------------------------
+
+    def _frame(self, frame: Any, est: NavEstimate) -> RelnavDiagnostics:
+        name = frame_camera_name(frame)
+        cam, mount = self.cams[name]
+        tracker = self.trackers[name]
+        t = float(frame.t_s)
+        fi = led_code.frame_index(t, self.led_rate_hz)
+        n_cam = int(round(t * self.cam_rate[name]))
+        full_due = (not self.params.roi.enabled) or n_cam % self.params.roi.full_frame_every == 0 or not tracker.tracks
+        dets, truths = [], []
+        for part in frame_parts(frame, cam.width_px, cam.height_px):
+            rois = None
+            if part.full and not full_due:
+                rois = self._track_rois(name, t)
+            dets.extend(detect_regions(self.detector, part.image, rois, part.origin_uv, part.truths))
+            truths.extend(part.truths)
+        self.counters["frames"] += 1
+        self.counters["detections"] += len(dets)
+        updated = tracker.update(t, fi, dets)
+
+        R_nb = quat_to_dcm(est.q_nb_wxyz)
+        R_nc = R_nb @ mount.R_bc
+        c_off = R_nb @ mount.lever_arm_b_m
+        att_sigma = float(np.sqrt(max(np.max(np.linalg.eigvalsh(np.asarray(est.cov_att_rad2, float))), 0.0)))
+        focal = 0.5 * (cam.fx + cam.fy)
+        diag = RelnavDiagnostics(t)
+        claimed: set[str] = set()
+        for tr in sorted((x for x in updated if x.confirmed), key=lambda x: -x.id_confidence):
+            det = tr.last_detection
+            peer = self.ids[tr.id_index] if tr.id_index is not None else None
+            if truths:
+                truth_id = id_check(det, truths)
+                if peer is not None and truth_id is not None:
+                    self.counters["id_checks"] += 1
+                    self.counters["id_wrong"] += int(peer != truth_id)
+                    diag.id_rows.append(dict(t_s=t, camera=name, track_id=tr.track_id, decoded_id=peer, truth_id=truth_id,
+                                             id_correct=float(peer == truth_id), id_confidence=tr.id_confidence))
+            m_xy = undistort_normalized(cam, [det.centre_px])[0]
+            if peer is None and self.params.predicted_association:
+                peer = self._predicted_peer(t, m_xy, R_nc, c_off, focal, att_sigma, claimed)
+                if peer is not None:
+                    self.counters["predicted_assoc"] += 1
+            if peer is None or peer in claimed:
+                continue
+            claimed.add(peer)
+            if tr.id_index is not None:
+                self.id_conf[peer] = tr.id_confidence
+            f = self.filters.get(peer)
+            if f is None:
+                f = self._start_filter(peer, t, cam, mount, R_nb, det.centre_px, att_sigma)
+                if f is None:
+                    continue
+            _, ok = f.update_bearing(t, m_xy, R_nc, c_off, focal, att_sigma)
+            self.counters["bearings_used"] += int(ok)
+        self._drop_stale(t)
+        if t + 1e-9 >= self._next_log_t:
+            self._next_log_t = t + 1.0 / self.params.log_rate_hz
+            diag.table = self.controller_input(t)
+        return diag
+
+    def _start_filter(self, peer, t, cam, mount, R_nb, centre_px, att_sigma) -> NeighbourFilter | None:
+        rng = self.last_range.get(peer)
+        if rng is None or t - rng[0] > self.params.range_max_age_s:
+            return None
+        r0 = relative_from_bearing_range(cam, mount, R_nb, [centre_px], rng[1])
+        ang = np.hypot(self.fset.bearing_sigma_px / (0.5 * (cam.fx + cam.fy)), att_sigma)
+        P0 = initial_covariance(r0, self.fset.range_sigma_m, ang)
+        f = NeighbourFilter(t, r0, P0, self.fset)
+        self.filters[peer] = f
+        log.debug("%s: relnav filter for %s started at %.2f s", self.self_id, peer, t)
+        return f
+
+    def _predicted_peer(self, t, m_xy, R_nc, c_off, focal, att_sigma, claimed) -> str | None:
+        """The one neighbour whose predicted line of sight gates with this bearing, if unique."""
+        hits = []
+        R = np.eye(2) * ((self.fset.bearing_sigma_px / focal) ** 2 + att_sigma**2)
+        for peer, f in self.filters.items():
+            if peer in claimed:
+                continue
+            dt = t - f.t_s
+            x = f.x[:3] + dt * f.x[3:]
+            d = (x - c_off) @ R_nc
+            if d[2] <= 0:
+                continue
+            h, H = f.bearing_model(R_nc, c_off)
+            S = H @ f.P @ H.T + R
+            y = m_xy - np.array([d[0] / d[2], d[1] / d[2]])
+            if float(y @ np.linalg.solve(S, y)) <= f.gate2:
+                hits.append(peer)
+        return hits[0] if len(hits) == 1 else None
+
+    def _drop_stale(self, t: float) -> None:
+        for peer in [p for p, f in self.filters.items()
+                     if t - max(f.last_bearing_t_s, f.last_range_t_s, -1e9) > self.params.stale_after_s
+                     and t - f.t_s > self.params.stale_after_s]:
+            del self.filters[peer]
+
+    def _track_rois(self, name: str, t: float) -> list:
+        cam, mount = self.cams[name]
+        rp = self.params.roi
+        rois = []
+        for tr in self.trackers[name].tracks:
+            r = roi_around(tr.box_at(t), rp.margin_px + rp.margin_per_miss_px * tr.misses, cam.width_px, cam.height_px, rp.min_size_px)
+            if r is not None:
+                rois.append(r)
+        # Neighbours known from other cameras or from before: look where they should appear.
+        est = self.last_estimate
+        if est is not None and self.filters:
+            from testbench.navigation.relative.geometry import project_relative
+
+            R_nb = quat_to_dcm(est.q_nb_wxyz)
+            for f in self.filters.values():
+                x = f.x[:3] + (t - f.t_s) * f.x[3:]
+                uv, z = project_relative(cam, mount, R_nb, x[None, :])
+                if z[0] <= 0:
+                    continue
+                half = 3.0 * np.sqrt(max(np.trace(f.P[:3, :3]), 1.0)) * cam.fx / max(z[0], 1.0)
+                r = roi_around((uv[0, 0], uv[0, 1], uv[0, 0], uv[0, 1]), rp.margin_px + half, cam.width_px, cam.height_px, rp.min_size_px)
+                if r is not None:
+                    rois.append(r)
+        return merge_rois(rois)
+
+    # -- for the engine and the controller -------------------------------------------------
+
+    def render_requests(self, t_s: float) -> dict[str, list[tuple[int, int, int, int]]]:
+        """Regions each camera should render at t_s (full-frame pixels, u1/v1 exclusive):
+        the whole frame [(0, 0, W, H)] on full-frame ticks (every roi.full_frame_every frames,
+        or while a camera has no track), else the merged regions around predicted tracks and
+        projected neighbour estimates (may be empty: nothing to render)."""
+        out = {}
+        for name, (cam, _) in self.cams.items():
+            n_cam = int(round(t_s * self.cam_rate[name]))
+            rp = self.params.roi
+            if not rp.enabled or n_cam % rp.full_frame_every == 0 or not self.trackers[name].tracks:
+                out[name] = [(0, 0, cam.width_px, cam.height_px)]
+            else:
+                out[name] = self._track_rois(name, t_s)
+        return out
+
+    def controller_input(self, t_s: float | None = None) -> NeighbourTable:
+        """Current NeighbourTable, each estimate extrapolated (constant relative velocity) to
+        t_s (default: the latest measurement time)."""
+        t = self.t_s if t_s is None else float(t_s)
+        table: NeighbourTable = {}
+        for peer, f in self.filters.items():
+            dt = max(t - f.t_s, 0.0)
+            F = np.eye(6)
+            F[:3, 3:] = dt * np.eye(3)
+            x = F @ f.x
+            P = F @ f.P @ F.T
+            table[peer] = RelativeEstimate(t, peer, x[:3].copy(), x[3:].copy(), P[:3, :3].copy(), P[3:, 3:].copy(),
+                                           self.id_conf.get(peer, float("nan")), f.last_bearing_t_s, f.last_range_t_s)
+        return table
+
+    def all_counters(self) -> dict[str, int]:
+        """Aid, tracker (summed over cameras) and filter (summed over neighbours) counters."""
+        out = dict(self.counters)
+        for tr in self.trackers.values():
+            for k, v in tr.counters.items():
+                out[f"tracks_{k}"] = out.get(f"tracks_{k}", 0) + v
+        for f in self.filters.values():
+            for k, v in f.counters.items():
+                out[k] = out.get(k, 0) + v
+        return out

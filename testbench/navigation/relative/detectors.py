@@ -1,0 +1,202 @@
+"""Classical detectors of other vehicles: the LED/blob detector and the truth oracle.
+
+Both register as kind "detector" and implement core.interfaces.Detector (`detect(image)`),
+plus `detect_region(image, origin_uv, truths)` that `regions.detect_regions` calls to get
+full-frame coordinates (the oracle needs the frame's truth annotations there).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Sequence
+
+import cv2
+import numpy as np
+import pydantic
+
+from testbench.core.interfaces import BuildContext, Detector
+from testbench.core.registry import ParamsModel, register
+from testbench.navigation.relative.types import Detection
+
+
+@register("detector", "led")
+class LedDetector(Detector):
+    """Bright, saturated LED blobs grouped into vehicles.
+
+    1. LED mask: HSV value >= v_min and saturation >= s_min (and hue within hue_ranges_deg
+       when given): lit LEDs are drawn near-white cores in a saturated glow, brighter than sky
+       (value <= ~200 at gain 1) and most ground.
+    2. 8-connected components of the mask, kept if area <= max_blob_area_px.
+    3. Blobs closer than group_px join one vehicle (union-find on centroids).
+    4. Per group: brightness-weighted LED centroid (the vehicle's centre), led_level = sum of
+       value/255 over the group's LED pixels (rises with the number of lit LEDs: the blink
+       decoder thresholds it), box = LED bbox grown into the dark body pixels around it
+       (grey < body_grey_max connected to the LEDs within body_search_px), else LED bbox
+       + box_pad_px.
+    """
+
+    class Params(ParamsModel):
+        v_min: int = pydantic.Field(215, ge=0, le=255)
+        s_min: int = pydantic.Field(60, ge=0, le=255)
+        hue_ranges_deg: list[tuple[float, float]] = []
+        max_blob_area_px: int = pydantic.Field(400, gt=0)
+        group_px: float = pydantic.Field(15.0, gt=0)
+        body_grey_max: int = pydantic.Field(100, ge=0, le=255)
+        body_search_px: int = pydantic.Field(12, ge=0)
+        box_pad_px: float = pydantic.Field(2.0, ge=0)
+
+    def __init__(self, params: "LedDetector.Params | None" = None, *, ctx: BuildContext | None = None, **_: Any):
+        self.params = params or self.Params()
+
+    def _mask(self, hsv: np.ndarray) -> np.ndarray:
+        p = self.params
+        m = (hsv[..., 2] >= p.v_min) & (hsv[..., 1] >= p.s_min)
+        if p.hue_ranges_deg:
+            h = hsv[..., 0].astype(np.float32) * 2.0  # OpenCV hue is degrees / 2
+            hm = np.zeros_like(m)
+            for lo, hi in p.hue_ranges_deg:
+                hm |= ((h >= lo) & (h <= hi)) if lo <= hi else ((h >= lo) | (h <= hi))
+            m &= hm
+        return m.astype(np.uint8)
+
+    def detect(self, image: np.ndarray) -> list[Detection]:
+        """Detections in `image` (H, W, 3) uint8 RGB, pixel coordinates of that image."""
+        p = self.params
+        hsv = cv2.cvtColor(image, cv2.COLOR_RGB2HSV)
+        mask = self._mask(hsv)
+        n, labels, stats, cents = cv2.connectedComponentsWithStats(mask, connectivity=8)
+        keep = [i for i in range(1, n) if stats[i, cv2.CC_STAT_AREA] <= p.max_blob_area_px]
+        if not keep:
+            return []
+        groups = _group(cents[keep], p.group_px)
+        value = hsv[..., 2].astype(np.float64) / 255.0
+        grey = None
+        out = []
+        for members in groups:
+            comp = [keep[i] for i in members]
+            x0 = min(stats[c, cv2.CC_STAT_LEFT] for c in comp)
+            y0 = min(stats[c, cv2.CC_STAT_TOP] for c in comp)
+            x1 = max(stats[c, cv2.CC_STAT_LEFT] + stats[c, cv2.CC_STAT_WIDTH] for c in comp)
+            y1 = max(stats[c, cv2.CC_STAT_TOP] + stats[c, cv2.CC_STAT_HEIGHT] for c in comp)
+            sub = labels[y0:y1, x0:x1]
+            gm = np.isin(sub, comp)
+            w = value[y0:y1, x0:x1] * gm
+            tot = float(w.sum())
+            vv, uu = np.mgrid[y0:y1, x0:x1]
+            cu, cv_ = float((w * uu).sum() / tot), float((w * vv).sum() / tot)
+            if grey is None:
+                grey = cv2.cvtColor(image, cv2.COLOR_RGB2GRAY)
+            box = self._body_box(grey, mask, (x0, y0, x1, y1))
+            leds = np.array([cents[c] for c in comp], float).reshape(-1, 2)
+            score = float(1.0 - np.exp(-float(gm.sum()) / 3.0))
+            out.append(Detection(box, (cu, cv_), score, "vehicle", leds, None, tot))
+        return out
+
+    def _body_box(self, grey: np.ndarray, mask: np.ndarray, led_box) -> tuple[float, float, float, float]:
+        p = self.params
+        x0, y0, x1, y1 = led_box
+        H, W = grey.shape
+        s = p.body_search_px
+        wx0, wy0, wx1, wy1 = max(x0 - s, 0), max(y0 - s, 0), min(x1 + s, W), min(y1 + s, H)
+        fallback = (x0 - 0.5 - p.box_pad_px, y0 - 0.5 - p.box_pad_px, x1 - 0.5 + p.box_pad_px, y1 - 0.5 + p.box_pad_px)
+        if s == 0:
+            return fallback
+        win = ((grey[wy0:wy1, wx0:wx1] <= p.body_grey_max) | (mask[wy0:wy1, wx0:wx1] > 0)).astype(np.uint8)
+        # Bridge the glow-to-body seam (anti-aliased edges are mid-grey).
+        win = cv2.dilate(win, np.ones((3, 3), np.uint8))
+        n, lab = cv2.connectedComponents(win, connectivity=8)
+        seeds = np.unique(lab[y0 - wy0: y1 - wy0, x0 - wx0: x1 - wx0][mask[y0:y1, x0:x1] > 0])
+        seeds = seeds[seeds > 0]
+        if len(seeds) == 0:
+            return fallback
+        ys, xs = np.nonzero(np.isin(lab, seeds))
+        bu0, bv0, bu1, bv1 = xs.min() + wx0 + 1, ys.min() + wy0 + 1, xs.max() + wx0, ys.max() + wy0  # undo dilation
+        touches = bu0 <= wx0 + 1 or bv0 <= wy0 + 1 or bu1 >= wx1 - 2 or bv1 >= wy1 - 2
+        if touches and (wx1 - wx0) * (wy1 - wy0) > 4 * (x1 - x0) * (y1 - y0):
+            return fallback  # dark ground around the vehicle: the body cannot be separated
+        return (min(bu0, x0) - 0.5, min(bv0, y0) - 0.5, max(bu1 + 1, x1) - 0.5, max(bv1 + 1, y1) - 0.5)
+
+    def detect_region(self, image: np.ndarray, origin_uv=(0, 0), truths: Sequence[Any] = ()) -> list[Detection]:
+        return [d.shifted(origin_uv[0], origin_uv[1]) for d in self.detect(image)]
+
+
+def _group(points: np.ndarray, radius: float) -> list[list[int]]:
+    """Connected groups of points closer than `radius` (union-find), as index lists."""
+    n = len(points)
+    parent = list(range(n))
+
+    def find(i):
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    d = np.linalg.norm(points[:, None, :] - points[None, :, :], axis=2)
+    for i, j in zip(*np.nonzero(np.triu(d < radius, 1))):
+        parent[find(i)] = find(j)
+    groups: dict[int, list[int]] = {}
+    for i in range(n):
+        groups.setdefault(find(i), []).append(i)
+    return list(groups.values())
+
+
+@register("detector", "oracle")
+class OracleDetector(Detector):
+    """Detections from the frame's truth annotations (VehicleTruth), degraded on purpose.
+
+    Each visible vehicle within max_range_m is missed with miss_probability; otherwise its
+    centre (and box) moves by N(0, sigma_px^2) per axis and its box size by a factor
+    N(1, size_sigma^2). LED states: the lit in-frame LEDs of the truth, each flipped with
+    led_flip_probability; led_level = their count. False alarms: Poisson with mean
+    false_alarms_per_mpx per megapixel of the searched image, uniformly placed, with a random
+    LED level. Randomness from the injected generator only.
+    """
+
+    class Params(ParamsModel):
+        sigma_px: float = pydantic.Field(0.5, ge=0)
+        size_sigma: float = pydantic.Field(0.05, ge=0)
+        miss_probability: float = pydantic.Field(0.0, ge=0, le=1)
+        false_alarms_per_mpx: float = pydantic.Field(0.0, ge=0)
+        led_flip_probability: float = pydantic.Field(0.0, ge=0, le=1)
+        max_range_m: float = pydantic.Field(1e9, gt=0)
+
+    def __init__(self, params: "OracleDetector.Params | None" = None, *, ctx: BuildContext | None = None,
+                 rng: np.random.Generator | None = None, **_: Any):
+        self.params = params or self.Params()
+        self.rng = rng if rng is not None else np.random.default_rng(0)
+
+    def detect(self, image: np.ndarray) -> list[Detection]:
+        """Without truth annotations the oracle sees only its false alarms."""
+        return self.detect_region(image, (0, 0), ())
+
+    def detect_region(self, image: np.ndarray, origin_uv=(0, 0), truths: Sequence[Any] = ()) -> list[Detection]:
+        p, rng = self.params, self.rng
+        H, W = image.shape[:2]
+        ou, ov = origin_uv
+        out = []
+        for t in truths:
+            if not t.visible or t.range_m > p.max_range_m:
+                continue
+            c = np.asarray(t.centre_px, float)
+            if not (ou - 0.5 <= c[0] < ou + W - 0.5 and ov - 0.5 <= c[1] < ov + H - 0.5):
+                continue  # another region (or another frame) reports it
+            if rng.random() < p.miss_probability:
+                continue
+            n = rng.normal(0.0, p.sigma_px, 2) if p.sigma_px > 0 else np.zeros(2)
+            k = max(0.2, 1.0 + rng.normal(0.0, p.size_sigma)) if p.size_sigma > 0 else 1.0
+            u0, v0, u1, v1 = t.bbox_px
+            bu, bv = 0.5 * (u0 + u1) - c[0], 0.5 * (v0 + v1) - c[1]  # box centre offset from the vehicle centre
+            hw, hh = 0.5 * (u1 - u0) * k, 0.5 * (v1 - v0) * k
+            cu, cv_ = c + n
+            box = (cu + bu - hw, cv_ + bv - hh, cu + bu + hw, cv_ + bv + hh)
+            on = [bool(o) for o, inside in zip(t.led_on, t.led_in_frame) if inside]
+            if p.led_flip_probability > 0:
+                on = [o ^ bool(rng.random() < p.led_flip_probability) for o in on]
+            leds = np.asarray(t.led_px, float).reshape(-1, 2)[np.asarray(t.led_in_frame, bool)] if len(t.led_in_frame) else np.zeros((0, 2))
+            out.append(Detection(box, (float(cu), float(cv_)), 1.0, "vehicle", leds, tuple(on), float(sum(on))))
+        n_fa = rng.poisson(p.false_alarms_per_mpx * W * H / 1e6) if p.false_alarms_per_mpx > 0 else 0
+        for _ in range(n_fa):
+            cu, cv_ = ou + rng.uniform(0, W) - 0.5, ov + rng.uniform(0, H) - 0.5
+            s = rng.uniform(3.0, 15.0)
+            out.append(Detection((cu - s / 2, cv_ - s / 2, cu + s / 2, cv_ + s / 2), (cu, cv_), float(rng.uniform(0.3, 1.0)),
+                                 "vehicle", np.zeros((0, 2)), None, float(rng.integers(1, 5))))
+        return out

@@ -1,0 +1,96 @@
+"""Decoding a neighbour's ID from its LED blink sequence (code: testbench.core.led_code).
+
+Per track, the decoder keeps the last `window` observations (LED frame index, LED level).
+Bits: a level is "all LEDs on" (chip 1) or "anchor only" (chip 0); the threshold between the
+two clusters is found per track (Otsu on log levels) because the absolute brightness depends
+on range and exposure; no decision while the two clusters are not yet both seen.
+Decision: maximum a posteriori over the code book with a uniform prior and independent chip
+errors of probability p_chip: log L_k = sum over observations [match ? log(1-p) : log p].
+Missed frames are erasures (they just add nothing); confidence = posterior of the best word.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+
+from testbench.core.led_code import CODE_LENGTH, codebook
+
+
+def chips_from_levels(levels: np.ndarray, min_ratio: float = 1.4) -> np.ndarray | None:
+    """0/1 chips from positive LED levels (n,), or None when they do not form two clusters
+    whose means differ by at least min_ratio."""
+    x = np.log(np.maximum(np.asarray(levels, float), 1e-9))
+    if len(x) < 2 or x.max() - x.min() < np.log(min_ratio):
+        return None
+    xs = np.sort(x)
+    best, thr = -1.0, 0.5 * (xs[0] + xs[-1])
+    for i in range(1, len(xs)):  # Otsu: maximise the between-class variance
+        a, b = xs[:i], xs[i:]
+        s = len(a) * len(b) * (a.mean() - b.mean()) ** 2
+        if s > best:
+            best, thr = s, 0.5 * (xs[i - 1] + xs[i])
+    lo, hi = x[x < thr], x[x >= thr]
+    if len(lo) == 0 or hi.mean() - lo.mean() < np.log(min_ratio):
+        return None
+    return (x >= thr).astype(np.uint8)
+
+
+class IdDecoder:
+    """Accumulates (frame_index, led_level) of one track and decodes the vehicle index.
+
+    n_vehicles: size of the code book (scenario vehicles); exclude: indices that cannot be seen
+    (the observer itself); p_chip: chip error probability used in the likelihood;
+    window: observations kept (default two code cycles); search_phase: also search the cyclic
+    shift (clocks not shared; weaker: minimum distance between shifted words is 2).
+    """
+
+    def __init__(self, n_vehicles: int, exclude: tuple[int, ...] = (), p_chip: float = 0.05,
+                 window: int = 2 * CODE_LENGTH, search_phase: bool = False, min_ratio: float = 1.4):
+        self.book = codebook(n_vehicles).astype(np.int8)
+        self.allowed = np.ones(n_vehicles, bool)
+        for k in exclude:
+            if 0 <= k < n_vehicles:
+                self.allowed[k] = False
+        self.p = float(p_chip)
+        self.obs: deque[tuple[int, float]] = deque(maxlen=int(window))
+        self.search_phase = search_phase
+        self.min_ratio = min_ratio
+
+    def observe(self, frame_index: int, level: float | None) -> None:
+        """Add one frame's LED level of the track (None: the detector saw no LED level)."""
+        if level is None or not np.isfinite(level) or level <= 0:
+            return
+        if self.obs and self.obs[-1][0] == frame_index:
+            self.obs[-1] = (frame_index, max(self.obs[-1][1], float(level)))  # two views of one frame
+            return
+        self.obs.append((int(frame_index), float(level)))
+
+    def posterior(self) -> np.ndarray | None:
+        """Posterior over vehicle indices (n_vehicles,), or None before two chip levels."""
+        if len(self.obs) < 2:
+            return None
+        fi = np.array([o[0] for o in self.obs])
+        bits = chips_from_levels(np.array([o[1] for o in self.obs]), self.min_ratio)
+        if bits is None:
+            return None
+        lp, lq = np.log(1.0 - self.p), np.log(self.p)
+        shifts = range(CODE_LENGTH) if self.search_phase else (0,)
+        ll = np.full(len(self.book), -np.inf)
+        for s in shifts:
+            pos = (fi + s) % CODE_LENGTH
+            match = self.book[:, pos] == bits[None, :]
+            ll = np.maximum(ll, np.where(match, lp, lq).sum(axis=1))
+        ll[~self.allowed] = -np.inf
+        ll -= ll.max()
+        w = np.exp(ll)
+        return w / w.sum()
+
+    def decode(self) -> tuple[int | None, float]:
+        """(best vehicle index or None, its posterior probability)."""
+        post = self.posterior()
+        if post is None:
+            return None, 0.0
+        k = int(np.argmax(post))
+        return k, float(post[k])

@@ -1,0 +1,156 @@
+"""Per-neighbour EKF on relative position and velocity (NED), fusing camera bearings and UWB
+ranges over time.
+
+State x = [r (3), w (3)]: r = p_peer - p_self (m, NED), w = dr/dt (m/s). Process: constant
+relative velocity with white relative acceleration of spectral density sigma_accel^2 per axis
+(covers the manoeuvres of both vehicles). Measurements:
+- bearing: normalised image coordinates m = (d_x/d_z, d_y/d_z) of d = R_nc^T (r - c), c the
+  camera centre offset R_nb l_cam (NED), R_nc = R_nb R_bc with the OWN ESTIMATED attitude; noise
+  (sigma_px / f)^2 plus the attitude uncertainty mapped through (1 + m^2);
+- range: rho = |r + b| + n, b = R_nb (l_uwb_peer - l_uwb_self) (zero for one installation).
+Robustness to NLOS (a positive excess W >= 0 on the range): the normalised innovation squared
+is gated at the chi-square(1) quantile and rejected ranges are counted; after
+`max_consecutive_rejects` in a row (the filter, not the range, is probably wrong) the next
+range is accepted with its noise inflated so that its NIS equals the gate (a bounded pull).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.stats import chi2
+
+
+@dataclass(frozen=True)
+class FilterSettings:
+    """sigma_accel_mps2: relative acceleration noise; range_sigma_m: UWB noise;
+    bearing_sigma_px: pixel noise of a detection centre; robust: gate ranges (NLOS);
+    gate_prob: chi-square gate probability (ranges and bearings);
+    max_consecutive_rejects: after this many rejected ranges in a row, accept one softly;
+    init_vel_sigma_mps: initial relative-velocity uncertainty."""
+
+    sigma_accel_mps2: float = 1.0
+    range_sigma_m: float = 0.10
+    bearing_sigma_px: float = 1.0
+    robust: bool = True
+    gate_prob: float = 0.999
+    max_consecutive_rejects: int = 10
+    init_vel_sigma_mps: float = 3.0
+
+
+class NeighbourFilter:
+    """EKF of one neighbour's relative state (see module docstring)."""
+
+    def __init__(self, t_s: float, r0_ned_m, cov_r0, settings: FilterSettings | None = None, w0=None):
+        self.s = settings or FilterSettings()
+        self.t_s = float(t_s)
+        self.x = np.zeros(6)
+        self.x[:3] = np.asarray(r0_ned_m, float)
+        if w0 is not None:
+            self.x[3:] = np.asarray(w0, float)
+        self.P = np.zeros((6, 6))
+        self.P[:3, :3] = np.asarray(cov_r0, float)
+        self.P[3:, 3:] = np.eye(3) * self.s.init_vel_sigma_mps**2
+        self.gate1 = float(chi2.ppf(self.s.gate_prob, 1))
+        self.gate2 = float(chi2.ppf(self.s.gate_prob, 2))
+        self.consecutive_rejects = 0
+        self.counters = {"range_accepted": 0, "range_rejected": 0, "range_soft": 0,
+                         "bearing_accepted": 0, "bearing_rejected": 0}
+        self.last_bearing_t_s = -np.inf
+        self.last_range_t_s = -np.inf
+
+    def predict(self, t_s: float) -> None:
+        dt = float(t_s) - self.t_s
+        if dt <= 0:
+            return
+        F = np.eye(6)
+        F[:3, 3:] = dt * np.eye(3)
+        q = self.s.sigma_accel_mps2**2
+        Q = np.zeros((6, 6))
+        Q[:3, :3] = np.eye(3) * q * dt**3 / 3
+        Q[:3, 3:] = Q[3:, :3] = np.eye(3) * q * dt**2 / 2
+        Q[3:, 3:] = np.eye(3) * q * dt
+        self.x = F @ self.x
+        self.P = F @ self.P @ F.T + Q
+        self.t_s = float(t_s)
+
+    def _update(self, y: np.ndarray, H: np.ndarray, R: np.ndarray) -> None:
+        S = H @ self.P @ H.T + R
+        K = np.linalg.solve(S, H @ self.P).T
+        self.x = self.x + K @ y
+        I_KH = np.eye(6) - K @ H
+        self.P = I_KH @ self.P @ I_KH.T + K @ R @ K.T  # Joseph form keeps P symmetric PSD
+        self.P = 0.5 * (self.P + self.P.T)
+
+    # -- measurements ---------------------------------------------------------------------
+
+    def bearing_model(self, R_nc: np.ndarray, cam_offset_ned_m) -> tuple[np.ndarray, np.ndarray]:
+        """Predicted normalised image coordinates (2,) and their Jacobian (2, 6)."""
+        d = (self.x[:3] - np.asarray(cam_offset_ned_m, float)) @ R_nc  # R_nc^T (r - c)
+        z = d[2] if abs(d[2]) > 1e-6 else 1e-6
+        h = np.array([d[0] / z, d[1] / z])
+        J = np.array([[1 / z, 0.0, -d[0] / z**2], [0.0, 1 / z, -d[1] / z**2]])
+        H = np.zeros((2, 6))
+        H[:, :3] = J @ R_nc.T
+        return h, H
+
+    def update_bearing(self, t_s: float, m_xy, R_nc: np.ndarray, cam_offset_ned_m, focal_px: float,
+                       att_sigma_rad: float = 0.0) -> tuple[float, bool]:
+        """Fuse normalised image coordinates m_xy (2,) seen by a camera with attitude R_nc
+        (camera -> NED, own estimate) and centre offset cam_offset_ned_m. Returns (NIS, accepted)."""
+        self.predict(t_s)
+        m = np.asarray(m_xy, float)
+        h, H = self.bearing_model(R_nc, cam_offset_ned_m)
+        if ((self.x[:3] - cam_offset_ned_m) @ R_nc)[2] <= 0:
+            self.counters["bearing_rejected"] += 1
+            return float("inf"), False  # behind the camera: a wrong association
+        sig2 = (self.s.bearing_sigma_px / focal_px) ** 2 + att_sigma_rad**2 * (1.0 + m @ m) ** 2
+        R = np.eye(2) * sig2
+        y = m - h
+        S = H @ self.P @ H.T + R
+        nis = float(y @ np.linalg.solve(S, y))
+        if nis > self.gate2:
+            self.counters["bearing_rejected"] += 1
+            return nis, False
+        self._update(y, H, R)
+        self.counters["bearing_accepted"] += 1
+        self.last_bearing_t_s = float(t_s)
+        return nis, True
+
+    def update_range(self, t_s: float, range_m: float, lever_diff_ned_m=(0.0, 0.0, 0.0)) -> tuple[float, bool]:
+        """Fuse one UWB range; lever_diff_ned_m = R_nb (l_peer - l_self). Returns (NIS, accepted)."""
+        self.predict(t_s)
+        a = self.x[:3] + np.asarray(lever_diff_ned_m, float)
+        n = float(np.linalg.norm(a))
+        if n < 1e-6:
+            return float("nan"), False
+        H = np.zeros((1, 6))
+        H[0, :3] = a / n
+        R = np.array([[self.s.range_sigma_m**2]])
+        y = np.array([float(range_m) - n])
+        S = float((H @ self.P @ H.T + R)[0, 0])
+        nis = float(y[0] ** 2 / S)
+        if self.s.robust and nis > self.gate1:
+            self.consecutive_rejects += 1
+            if self.consecutive_rejects <= self.s.max_consecutive_rejects:
+                self.counters["range_rejected"] += 1
+                return nis, False
+            # Persistent disagreement: accept softly (NIS brought down to the gate).
+            R = R + (y[0] ** 2 / self.gate1 - S)
+            self.counters["range_soft"] += 1
+        self.consecutive_rejects = 0
+        self._update(y, H, R)
+        self.counters["range_accepted"] += 1
+        self.last_range_t_s = float(t_s)
+        return nis, True
+
+
+def initial_covariance(rel_ned_m, range_sigma_m: float, angle_sigma_rad: float) -> np.ndarray:
+    """Covariance (3, 3) of a position from one range (along the line of sight) and one
+    bearing (across it): e e^T sigma_rho^2 + (I - e e^T) (rho sigma_theta)^2."""
+    r = np.asarray(rel_ned_m, float)
+    rho = float(np.linalg.norm(r))
+    e = r / max(rho, 1e-6)
+    E = np.outer(e, e)
+    return E * range_sigma_m**2 + (np.eye(3) - E) * (rho * angle_sigma_rad) ** 2

@@ -1,0 +1,197 @@
+"""Image-plane tracking of detected vehicles in one camera (SORT-like).
+
+State per track: x = [u, v, a, h, du, dv, da, dh] (box centre px, aspect w/h, height px, and
+their rates per second), constant-velocity Kalman filter (filterpy). Assignment: Hungarian
+(scipy.optimize.linear_sum_assignment) on the squared Mahalanobis distance of the measurement
+[u, v, a, h] to each track's prediction, gated at the chi-square(4) quantile `gate_prob`.
+Birth: a track is confirmed after `n_init` hits; death after `max_misses` frames without a
+detection (a tentative track dies at its first miss). Each track decodes its LED blink ID
+(idcode.IdDecoder); once its confidence passes `id_confidence` the track carries that ID, and
+a later change of the decoded ID is counted (`counters["id_changes"]`).
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass, field
+
+import numpy as np
+from filterpy.kalman import KalmanFilter
+from scipy.optimize import linear_sum_assignment
+from scipy.stats import chi2
+
+from testbench.navigation.relative.idcode import IdDecoder
+from testbench.navigation.relative.types import Detection
+
+
+@dataclass(frozen=True)
+class TrackerSettings:
+    """sigma_px_min: floor of the pixel noise of a centre; pos_sigma_frac: centre noise as a
+    fraction of the box height; accel_px_s2: white-noise image acceleration (px/s^2);
+    n_init, max_misses: birth and death; gate_prob: chi-square gate; id_confidence: posterior
+    that assigns a decoded ID; p_chip: LED chip error probability."""
+
+    sigma_px_min: float = 0.7
+    pos_sigma_frac: float = 0.1
+    accel_px_s2: float = 60.0
+    n_init: int = 3
+    max_misses: int = 5
+    gate_prob: float = 0.999
+    id_confidence: float = 0.99
+    p_chip: float = 0.05
+    search_phase: bool = False
+
+
+def _z(det: Detection) -> np.ndarray:
+    h = max(det.height_px, 1.0)
+    return np.array([det.centre_px[0], det.centre_px[1], max(det.width_px, 1.0) / h, h])
+
+
+@dataclass
+class Track:
+    """One image-plane track. id_index: decoded vehicle index (None until confident)."""
+
+    track_id: int
+    kf: KalmanFilter
+    t_s: float
+    decoder: IdDecoder
+    hits: int = 1
+    misses: int = 0
+    confirmed: bool = False
+    id_index: int | None = None
+    id_confidence: float = 0.0
+    last_detection: Detection | None = None
+    history: list = field(default_factory=list)
+
+    @property
+    def centre_px(self) -> np.ndarray:
+        return self.kf.x[:2, 0].copy()
+
+    def box_at(self, t_s: float) -> tuple[float, float, float, float]:
+        """Predicted (u0, v0, u1, v1) at time t_s (constant image velocity)."""
+        x = self.kf.x[:, 0]
+        dt = t_s - self.t_s
+        u, v, a, h = x[:4] + dt * x[4:]
+        h = max(h, 1.0)
+        w = max(a, 0.05) * h
+        return (u - w / 2, v - h / 2, u + w / 2, v + h / 2)
+
+
+class Tracker:
+    """Tracks of one camera. `update(t_s, frame_index, detections)` once per frame."""
+
+    def __init__(self, n_vehicles: int, own_index: int | None = None, settings: TrackerSettings | None = None):
+        self.s = settings or TrackerSettings()
+        self.n_vehicles = n_vehicles
+        self.exclude = () if own_index is None else (own_index,)
+        self.tracks: list[Track] = []
+        self._ids = itertools.count(1)
+        self.gate = float(chi2.ppf(self.s.gate_prob, 4))
+        self.counters = {"born": 0, "confirmed": 0, "died": 0, "id_assigned": 0, "id_changes": 0}
+
+    # -- Kalman filter ----------------------------------------------------------------------
+
+    def _R(self, h: float) -> np.ndarray:
+        sp = max(self.s.sigma_px_min, self.s.pos_sigma_frac * h)
+        return np.diag([sp**2, sp**2, 0.15**2, (max(0.5, 0.1 * h)) ** 2])
+
+    def _new_kf(self, z: np.ndarray) -> KalmanFilter:
+        kf = KalmanFilter(dim_x=8, dim_z=4)
+        kf.H = np.hstack([np.eye(4), np.zeros((4, 4))])
+        kf.x = np.concatenate([z, np.zeros(4)]).reshape(8, 1)
+        sp = max(self.s.sigma_px_min, self.s.pos_sigma_frac * z[3])
+        kf.P = np.diag([sp**2, sp**2, 0.2**2, (0.2 * z[3] + 1) ** 2, 200.0**2, 200.0**2, 0.5**2, (z[3] + 10) ** 2])
+        kf.R = self._R(z[3])
+        return kf
+
+    def _predict(self, tr: Track, t_s: float) -> None:
+        dt = t_s - tr.t_s
+        if dt <= 0:
+            return
+        F = np.eye(8)
+        F[:4, 4:] = dt * np.eye(4)
+        q = self.s.accel_px_s2**2
+        qa = np.array([q, q, 0.05**2, (0.05 * tr.kf.x[3, 0] + 2.0) ** 2])
+        G = np.vstack([0.5 * dt**2 * np.eye(4), dt * np.eye(4)])
+        tr.kf.F = F
+        tr.kf.Q = G @ np.diag(qa) @ G.T
+        tr.kf.predict()
+        tr.t_s = t_s
+
+    # -- frames -----------------------------------------------------------------------------
+
+    def update(self, t_s: float, frame_index: int, detections: list[Detection]) -> list[Track]:
+        """Predict all tracks to t_s, assign `detections`, update, birth and death.
+        Returns the tracks that received a detection in this frame."""
+        for tr in self.tracks:
+            self._predict(tr, t_s)
+        zs = [_z(d) for d in detections]
+        n, m = len(self.tracks), len(detections)
+        cost = np.full((n, m), 1e6)
+        for i, tr in enumerate(self.tracks):
+            Hx = tr.kf.x[:4, 0]
+            for j, z in enumerate(zs):
+                S = tr.kf.P[:4, :4] + self._R(z[3])
+                y = z - Hx
+                d2 = float(y @ np.linalg.solve(S, y))
+                if d2 <= self.gate:
+                    cost[i, j] = d2
+        matched_t, matched_d = set(), set()
+        updated = []
+        if n and m:
+            rows, cols = linear_sum_assignment(cost)
+            for i, j in zip(rows, cols):
+                if cost[i, j] >= 1e6:
+                    continue
+                tr, det = self.tracks[i], detections[j]
+                tr.kf.R = self._R(zs[j][3])
+                tr.kf.update(zs[j].reshape(4, 1))
+                tr.hits += 1
+                tr.misses = 0
+                tr.last_detection = det
+                if not tr.confirmed and tr.hits >= self.s.n_init:
+                    tr.confirmed = True
+                    self.counters["confirmed"] += 1
+                self._observe_id(tr, frame_index, det)
+                matched_t.add(i)
+                matched_d.add(j)
+                updated.append(tr)
+        survivors = []
+        for i, tr in enumerate(self.tracks):
+            if i not in matched_t:
+                tr.misses += 1
+                tr.last_detection = None
+                if (not tr.confirmed) or tr.misses > self.s.max_misses:
+                    self.counters["died"] += 1
+                    continue
+            survivors.append(tr)
+        self.tracks = survivors
+        for j, det in enumerate(detections):
+            if j in matched_d:
+                continue
+            tr = Track(next(self._ids), self._new_kf(zs[j]), t_s,
+                       IdDecoder(self.n_vehicles, self.exclude, self.s.p_chip, search_phase=self.s.search_phase),
+                       last_detection=det)
+            if self.s.n_init <= 1:
+                tr.confirmed = True
+                self.counters["confirmed"] += 1
+            self._observe_id(tr, frame_index, det)
+            self.counters["born"] += 1
+            self.tracks.append(tr)
+            updated.append(tr)
+        return updated
+
+    def _observe_id(self, tr: Track, frame_index: int, det: Detection) -> None:
+        tr.decoder.observe(frame_index, det.led_level)
+        k, conf = tr.decoder.decode()
+        tr.id_confidence = conf if (k is not None and k == tr.id_index) or tr.id_index is None else tr.id_confidence
+        if k is None or conf < self.s.id_confidence:
+            return
+        if tr.id_index is None:
+            self.counters["id_assigned"] += 1
+        elif tr.id_index != k:
+            self.counters["id_changes"] += 1
+        tr.id_index, tr.id_confidence = k, conf
+
+    def confirmed(self) -> list[Track]:
+        return [t for t in self.tracks if t.confirmed]
