@@ -1,0 +1,105 @@
+"""Neighbour EKF (convergence, NLOS rejection) and the oracle detector's statistics."""
+
+import numpy as np
+import pytest
+
+from testbench.core.camera_geometry import CameraMount, mount_rotation
+from testbench.navigation.relative.detectors import OracleDetector
+from testbench.navigation.relative.neighbour_filter import FilterSettings, NeighbourFilter, initial_covariance
+from testbench.sensors.camera.types import VehicleTruth
+
+MOUNT = CameraMount(mount_rotation(0, 0, 0), np.array([0.1, 0.0, 0.0]))
+F_PX = 554.0
+
+
+def _run(robust: bool, seed: int = 0):
+    """A neighbour at 100 m moving at 0.5 m/s relative; bearings at 10 Hz, ranges at 10 Hz, one
+    NLOS range with +6 m excess at t = 5 s. Returns the position errors (m) after t = 5 s."""
+    rng = np.random.default_rng(seed)
+    R_nc = MOUNT.R_bc  # level vehicle heading north: R_nb = I
+    c = MOUNT.lever_arm_b_m
+    r_true = lambda t: np.array([100.0, 10.0 + 0.5 * t, -5.0])
+    f = NeighbourFilter(0.0, r_true(0) + [3.0, -2.0, 1.0], initial_covariance(r_true(0), 0.5, 0.02),
+                        FilterSettings(robust=robust))
+    errs = []
+    for k in range(1, 101):
+        t = 0.1 * k
+        d = (r_true(t) - c) @ R_nc
+        m = d[:2] / d[2] + rng.normal(0, 1.0 / F_PX, 2)
+        f.update_bearing(t, m, R_nc, c, F_PX)
+        rho = np.linalg.norm(r_true(t + 0.05)) + rng.normal(0, 0.1) + (6.0 if k == 50 else 0.0)
+        nis, ok = f.update_range(t + 0.05, rho)
+        if k == 50:
+            nlos_accepted = ok
+        if k >= 50:
+            errs.append(np.linalg.norm(f.x[:3] - r_true(f.t_s)))
+    return np.array(errs), nlos_accepted, f
+
+
+def test_filter_rejects_nlos_outlier():
+    errs, accepted, f = _run(robust=True)
+    assert not accepted and f.counters["range_rejected"] >= 1
+    assert errs.max() < 0.5
+    errs_naive, accepted_naive, _ = _run(robust=False)
+    assert accepted_naive and errs_naive.max() > errs.max() + 0.5  # the outlier pulls a naive filter
+
+
+def test_filter_converges_and_is_consistent():
+    errs, _, f = _run(robust=True, seed=1)
+    assert errs[-20:].mean() < 0.3  # 1 px at 100 m is 0.18 m per axis
+    P = f.P[:3, :3]
+    assert np.all(np.linalg.eigvalsh(P) > 0)
+
+
+def test_soft_accept_after_persistent_disagreement():
+    f = NeighbourFilter(0.0, [50.0, 0, 0], np.eye(3) * 0.01, FilterSettings(max_consecutive_rejects=3))
+    oks = [f.update_range(0.1 * k, 60.0)[1] for k in range(1, 6)]
+    assert oks[:3] == [False] * 3 and oks[3]  # the 4th is taken softly
+    assert f.counters["range_soft"] == 1
+
+
+def _truths(n=200):
+    rng = np.random.default_rng(0)
+    out = []
+    for i in range(n):
+        u, v = rng.uniform(100, 1800), rng.uniform(100, 1000)
+        out.append(VehicleTruth(f"v{i}", (u - 5, v - 4, u + 5, v + 4), np.array([u, v]), np.array([[u - 1, v], [u + 1, v]]),
+                                (True, bool(i % 2)), (True, True), True, 100.0))
+    return out
+
+
+def test_oracle_noise_miss_and_false_alarm_statistics():
+    truths = _truths()
+    img = np.zeros((1080, 1920, 3), np.uint8)
+    p = OracleDetector.Params(sigma_px=2.0, miss_probability=0.2, false_alarms_per_mpx=1.0, size_sigma=0.0)
+    det = OracleDetector(p, rng=np.random.default_rng(5))
+    n_det, n_fa, errs = 0, 0, []
+    frames = 50
+    centres = np.array([t.centre_px for t in truths])
+    for _ in range(frames):
+        ds = det.detect_region(img, (0, 0), truths)
+        for d in ds:
+            dist = np.linalg.norm(centres - d.centre_px, axis=1)
+            j = int(np.argmin(dist))
+            if d.led_on is None:
+                n_fa += 1
+                continue
+            n_det += 1
+            errs.append(np.asarray(d.centre_px) - centres[j])
+            assert d.led_level == float(sum(truths[j].led_on))
+    n = frames * len(truths)
+    # Misses ~ Binomial(n, 0.2): 4-sigma bounds.
+    assert abs(n_det / n - 0.8) < 4 * np.sqrt(0.2 * 0.8 / n)
+    errs = np.array(errs)
+    assert np.std(errs[:, 0]) == pytest.approx(2.0, rel=0.05) and abs(np.mean(errs[:, 1])) < 0.1
+    lam = frames * 1920 * 1080 / 1e6
+    assert abs(n_fa - lam) < 4 * np.sqrt(lam)
+
+
+def test_oracle_is_deterministic_under_seed():
+    truths = _truths(20)
+    img = np.zeros((1080, 1920, 3), np.uint8)
+    p = OracleDetector.Params(sigma_px=1.0, miss_probability=0.3)
+    a = [d.centre_px for d in OracleDetector(p, rng=np.random.default_rng(9)).detect_region(img, (0, 0), truths)]
+    b = [d.centre_px for d in OracleDetector(p, rng=np.random.default_rng(9)).detect_region(img, (0, 0), truths)]
+    assert a == b

@@ -1,0 +1,91 @@
+"""Image tracking: Hungarian assignment keeps identities of crossing tracks; LED IDs decode
+through missed frames and chip errors; birth and death."""
+
+import numpy as np
+
+from testbench.core import led_code
+from testbench.navigation.relative.idcode import IdDecoder, chips_from_levels
+from testbench.navigation.relative.tracking import Tracker, TrackerSettings
+from testbench.navigation.relative.types import Detection
+
+
+def _det(u, v, level=None, size=6.0):
+    return Detection((u - size / 2, v - size / 2, u + size / 2, v + size / 2), (u, v), 1.0, led_level=level)
+
+
+def _level(k, fi, n_leds=4):
+    return float(sum(led_code.led_states(k, fi, n_leds)))
+
+
+def test_crossing_tracks_keep_identity_and_decode_ids():
+    tr = Tracker(n_vehicles=10, own_index=0, settings=TrackerSettings(n_init=2))
+    rng = np.random.default_rng(3)
+    ids_a, ids_b = set(), set()
+    for k in range(60):  # 6 s at 10 Hz; A moves right, B left; they cross at k = 30
+        t = 0.1 * k
+        ua, ub = 100 + 10 * k, 700 - 10 * k
+        va, vb = 300 + 0.5 * k, 303 - 0.5 * k
+        dets = [_det(ua + rng.normal(0, 0.5), va + rng.normal(0, 0.5), _level(3, k)),
+                _det(ub + rng.normal(0, 0.5), vb + rng.normal(0, 0.5), _level(7, k))]
+        if k % 2:
+            dets = dets[::-1]  # detection order must not matter
+        tr.update(t, k, dets)
+        if k > 3:  # after the velocity has converged: A's track moves right, B's left
+            for t_ in tr.tracks:
+                (ids_a if t_.kf.x[4, 0] > 0 else ids_b).add(t_.track_id)
+                assert abs(t_.centre_px[0] - (ua if t_.kf.x[4, 0] > 0 else ub)) < 3.0
+    assert len(tr.tracks) == 2
+    assert len(ids_a) == 1 and len(ids_b) == 1 and ids_a != ids_b  # no swap at the crossing
+    by_id = {t_.track_id: t_ for t_ in tr.tracks}
+    assert by_id[ids_a.pop()].id_index == 3
+    assert by_id[ids_b.pop()].id_index == 7
+    assert tr.counters["id_changes"] == 0
+
+
+def test_track_birth_and_death():
+    tr = Tracker(4, settings=TrackerSettings(n_init=3, max_misses=2))
+    for k in range(3):
+        tr.update(0.1 * k, k, [_det(50, 50)])
+    assert len(tr.confirmed()) == 1
+    for k in range(3, 6):
+        tr.update(0.1 * k, k, [])
+    assert tr.tracks == [] and tr.counters["died"] == 1
+    tr.update(0.6, 6, [_det(500, 500)])  # a single false alarm never confirms
+    tr.update(0.7, 7, [])
+    assert tr.tracks == []
+
+
+def test_led_decoding_with_missed_frames_and_chip_errors():
+    rng = np.random.default_rng(7)
+    L = led_code.CODE_LENGTH
+    for k in range(1, 16):
+        dec = IdDecoder(16, exclude=(0,))
+        flipped = 0
+        for fi in range(100, 100 + 2 * L):
+            if rng.random() < 0.3:
+                continue  # missed frame
+            level = _level(k, fi) * rng.uniform(0.8, 1.2) * 40.0  # brightness scale unknown to the decoder
+            if flipped == 0 and fi > 100 + L:
+                level = 40.0 * (5.0 - _level(k, fi))  # one chip error
+                flipped = 1
+            dec.observe(fi, level)
+        idx, conf = dec.decode()
+        assert idx == k and conf > 0.99
+
+
+def test_decoder_waits_for_evidence():
+    dec = IdDecoder(8)
+    assert dec.decode() == (None, 0.0)
+    for fi in range(3):  # preamble 1, 1, 1: one brightness level only
+        dec.observe(fi, 4.0)
+    assert dec.decode()[0] is None
+    assert chips_from_levels(np.array([4.0, 4.0, 4.1])) is None
+
+
+def test_code_properties():
+    assert led_code.min_distance(32) >= 4
+    for k in range(32):
+        for fi in range(led_code.CODE_LENGTH):
+            s = led_code.led_states(k, fi, 4)
+            assert s[0] and len(s) == 4  # the anchor LED is always on
+    assert led_code.frame_index(0.3, 10.0) == 3
