@@ -1,0 +1,230 @@
+"""Formation followers: hold a slot relative to the neighbours this vehicle ESTIMATES.
+
+No vehicle reads another's state: a follower gets only its own NavEstimate and, as
+`reference`, the NeighbourTable of its relative-navigation aid (id -> RelativeEstimate:
+r_j = p_j - p_self in NED, its rate w_j, covariances).
+
+Formation frame: forward along the formation course chi (the leader's course, which the
+follower estimates from its neighbours' estimated velocities v_j = v_self + w_j), right,
+down. R(chi) maps formation to NED: forward = (cos chi, sin chi, 0), right = (-sin chi,
+cos chi, 0). Slots s_k (forward, right, down, m) are given per vehicle id.
+
+Consensus law (over fresh neighbours j with weights a_j, leader weight configurable):
+  e = sum_j a_j [r_j - R(chi) (s_j - s_self)] / sum_j a_j          (slot error, NED, m)
+  v_ff = low-pass of sum_j a_j v_j / sum_j a_j                       (velocity feed-forward)
+  v_cmd = v_ff + k_slot e + sum_{j: |r_j| < margin} k_rep (|r_j| - margin) r_j / |r_j|
+With nobody fresh in sight it holds its last course and speed at its last altitude.
+The multirotor follower feeds v_cmd to the multirotor cascade's inner loops (velocity ->
+attitude -> rate -> mixer) with the nose on the course; the fixed-wing follower turns v_cmd
+into bank (course error), airspeed and altitude commands for the fixed-wing autopilot.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import pydantic
+
+from testbench.control.fixed_wing import FixedWingController
+from testbench.control.multirotor import MultirotorController
+from testbench.control.paths import LineSegment
+from testbench.core.errors import InputError
+from testbench.core.interfaces import BuildContext
+from testbench.core.messages import GuidanceStatus, NavEstimate
+from testbench.core.registry import ParamsModel, register
+from testbench.core.rotations import wrap_pi
+from testbench.core.units import STANDARD_GRAVITY_MPS2
+
+G = STANDARD_GRAVITY_MPS2
+
+
+def formation_rotation(course_rad: float) -> np.ndarray:
+    """R (3, 3): formation (forward, right, down) -> NED for a course chi (rad)."""
+    c, s = math.cos(course_rad), math.sin(course_rad)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def formation_errors(pos_ned_by_id: dict[str, np.ndarray], course_rad: float, slots: dict[str, Any],
+                     leader_id: str) -> dict[str, np.ndarray]:
+    """Slot error (NED, m) of every vehicle relative to the leader: p_k - p_leader - R(chi)
+    (s_k - s_leader). A pure function for scoring (truth positions and the leader's course)."""
+    R = formation_rotation(course_rad)
+    p0, s0 = np.asarray(pos_ned_by_id[leader_id], float), np.asarray(slots[leader_id], float)
+    return {k: np.asarray(p, float) - p0 - R @ (np.asarray(slots[k], float) - s0)
+            for k, p in pos_ned_by_id.items() if k != leader_id and k in slots}
+
+
+class FormationParams(ParamsModel):
+    """slots: id -> (forward_m, right_m, down_m) in the formation frame (own id required);
+    leader_id, leader_weight: weight of the leader's term (others 1); k_slot (1/s): slot gain;
+    ff_tau_s: low-pass time constant of the velocity feed-forward; course_min_speed_mps: below
+    this the course is held; margin_m, k_repulse (1/s): collision-avoidance margin and gain;
+    max_age_s: estimates older than this are ignored; max_speed_mps, max_climb_rate_mps."""
+
+    slots: dict[str, tuple[float, float, float]]
+    leader_id: str | None = None
+    leader_weight: float = pydantic.Field(2.0, gt=0)
+    k_slot: float = pydantic.Field(0.4, gt=0)
+    ff_tau_s: float = pydantic.Field(1.0, ge=0)
+    course_min_speed_mps: float = pydantic.Field(1.0, ge=0)
+    margin_m: float = pydantic.Field(15.0, ge=0)
+    k_repulse: float = pydantic.Field(0.5, ge=0)
+    max_age_s: float = pydantic.Field(2.0, gt=0)
+    max_speed_mps: float = pydantic.Field(10.0, gt=0)
+    max_climb_rate_mps: float = pydantic.Field(2.0, gt=0)
+
+
+class FormationLaw:
+    """The consensus slot law (module docstring), independent of the airframe."""
+
+    def __init__(self, p: FormationParams, self_id: str):
+        if self_id not in p.slots:
+            raise InputError(f"control.params.slots: no slot for this vehicle {self_id!r}")
+        self.p = p
+        self.self_id = self_id
+        self.s_self = np.asarray(p.slots[self_id], float)
+        self.course: float | None = None
+        self.v_ff: np.ndarray | None = None
+        self.hold_alt_down_m: float | None = None
+        self.t_prev: float | None = None
+        self.n_seen = 0
+        self.error_ned_m = np.zeros(3)
+
+    def velocity_command(self, t_s: float, est: NavEstimate, table: dict | None) -> np.ndarray:
+        """v_cmd (3,) NED m/s from the own estimate and the NeighbourTable."""
+        p = self.p
+        pos, vel = np.asarray(est.pos_ned_m, float), np.asarray(est.vel_ned_mps, float)
+        dt = 0.0 if self.t_prev is None else max(t_s - self.t_prev, 0.0)
+        self.t_prev = t_s
+        if self.course is None:
+            self.course = float(est.rpy_rad[2])
+            self.v_ff = np.array([vel[0], vel[1], 0.0])
+        fresh = [e for k, e in (table or {}).items()
+                 if k in p.slots and k != self.self_id and t_s - e.t_s <= p.max_age_s]
+        self.n_seen = len(fresh)
+        if not fresh:  # hold course, speed and altitude
+            if self.hold_alt_down_m is None:
+                self.hold_alt_down_m = float(pos[2])
+            v = self.v_ff.copy()
+            v[2] = float(np.clip(0.5 * (self.hold_alt_down_m - pos[2]), -p.max_climb_rate_mps, p.max_climb_rate_mps))
+            self.error_ned_m = np.zeros(3)
+            return self._limit(v)
+        self.hold_alt_down_m = None
+        w = np.array([p.leader_weight if e.peer_id == p.leader_id else 1.0 for e in fresh])
+        w /= w.sum()
+        v_nb = np.array([vel + np.asarray(e.vel_ned_mps, float) for e in fresh])
+        v_mean = w @ v_nb
+        a = 1.0 if p.ff_tau_s <= 0 else min(1.0, dt / p.ff_tau_s)
+        self.v_ff = self.v_ff + a * (v_mean - self.v_ff)
+        if math.hypot(self.v_ff[0], self.v_ff[1]) >= p.course_min_speed_mps:
+            self.course = math.atan2(self.v_ff[1], self.v_ff[0])
+        R = formation_rotation(self.course)
+        e = sum(wi * (np.asarray(en.pos_ned_m, float) - R @ (np.asarray(p.slots[en.peer_id], float) - self.s_self))
+                for wi, en in zip(w, fresh))
+        self.error_ned_m = np.asarray(e, float)
+        v = self.v_ff + p.k_slot * self.error_ned_m
+        for en in fresh:
+            r = np.asarray(en.pos_ned_m, float)
+            d = float(np.linalg.norm(r))
+            if 1e-6 < d < p.margin_m:
+                v += p.k_repulse * (d - p.margin_m) * r / d  # away from the neighbour
+        return self._limit(v)
+
+    def _limit(self, v: np.ndarray) -> np.ndarray:
+        v = np.asarray(v, float).copy()
+        v[2] = float(np.clip(v[2], -self.p.max_climb_rate_mps, self.p.max_climb_rate_mps))
+        h = math.hypot(v[0], v[1])
+        if h > self.p.max_speed_mps:
+            v[:2] *= self.p.max_speed_mps / h
+        return v
+
+    def status(self, t_s: float, pos: np.ndarray, airspeed_cmd: float = float("nan"), bank: float = float("nan")) -> GuidanceStatus:
+        target = np.asarray(pos, float) + self.error_ned_m
+        return GuidanceStatus(t_s=t_s, leg_index=self.n_seen, on_leg=self.n_seen > 0, alt_cmd_m=float(-target[2]),
+                              airspeed_cmd_mps=airspeed_cmd, target_ned_m=tuple(float(x) for x in target), bank_cmd_rad=bank)
+
+
+class _HoldMission:
+    """Stand-in mission for the autopilots' constructors (the follower has no route)."""
+
+    waypoints_ned_m = np.zeros((1, 3))
+    altitude_m = 0.0
+    closed = False
+
+    def path(self, _speed):
+        return (LineSegment(np.zeros(2), np.array([1.0e5, 0.0])),)
+
+
+@register("controller", "formation_follower")
+class FormationFollower(MultirotorController):
+    """Multirotor follower: FormationLaw velocity command through the multirotor cascade
+    (its velocity, attitude and rate loops and mixer), nose on the formation course.
+
+    Params: FormationParams, plus max_tilt_deg (default: the sidecar's)."""
+
+    class Params(FormationParams):
+        max_tilt_deg: float | None = pydantic.Field(default=None, gt=0.0, lt=60.0)
+
+    def __init__(self, params: "FormationFollower.Params", *, ctx: BuildContext, aircraft: dict, mission=None, **_: object):
+        base = MultirotorController.Params(max_speed_mps=params.max_speed_mps, max_climb_rate_mps=params.max_climb_rate_mps,
+                                           max_tilt_deg=params.max_tilt_deg)
+        super().__init__(base, ctx=ctx, mission=_HoldMission(), aircraft=aircraft)
+        self.law = FormationLaw(params, ctx.vehicle_id)
+        self._v_cmd = np.zeros(3)
+        self._fstatus = GuidanceStatus(t_s=0.0)
+
+    def _velocity_command(self, pos: np.ndarray) -> np.ndarray:  # called by the cascade
+        return self._v_cmd
+
+    def update(self, t_s: float, estimate: NavEstimate, reference=None):
+        self._v_cmd = self.law.velocity_command(t_s, estimate, reference)
+        if self._prev_pt is None:  # first tick: the cascade initialises from the estimate
+            self._prev_pt = np.asarray(estimate.pos_ned_m, float).copy()
+        self._yaw_sp = self.law.course
+        cmd = super().update(t_s, estimate, reference)
+        self._fstatus = self.law.status(t_s, estimate.pos_ned_m, bank=self._status.bank_cmd_rad)
+        return cmd
+
+    def status(self) -> GuidanceStatus:
+        return self._fstatus
+
+
+@register("controller", "formation_follower_fw")
+class FixedWingFormationFollower(FixedWingController):
+    """Fixed-wing follower: FormationLaw velocity command -> course (bank = atan(V k_chi
+    course error / g), limited), airspeed (current airspeed plus the ground-speed deficit,
+    within [min_airspeed, max_speed]) and altitude (slot altitude) through the fixed-wing
+    autopilot's inner loops. Params: FormationParams, k_course (1/s), min_airspeed_mps."""
+
+    class Params(FormationParams):
+        k_course: float = pydantic.Field(0.3, gt=0)
+        min_airspeed_mps: float = pydantic.Field(15.0, gt=0)
+        max_speed_mps: float = pydantic.Field(30.0, gt=0)
+        max_bank_deg: float | None = pydantic.Field(default=None, gt=0.0, lt=80.0)
+        gains_aircraft: str | None = None
+
+    def __init__(self, params: "FixedWingFormationFollower.Params", *, ctx: BuildContext, aircraft: dict, mission=None, **_: object):
+        base = FixedWingController.Params(max_bank_deg=params.max_bank_deg, max_climb_rate_mps=params.max_climb_rate_mps,
+                                          gains_aircraft=params.gains_aircraft)
+        super().__init__(base, ctx=ctx, mission=_HoldMission(), aircraft=aircraft)
+        self.fparams = params
+        self.law = FormationLaw(params, ctx.vehicle_id)
+
+    def update(self, t_s: float, estimate: NavEstimate, reference=None):
+        p = self.fparams
+        v_cmd = self.law.velocity_command(t_s, estimate, reference)
+        vel = np.asarray(estimate.vel_ned_mps, float)
+        gs = math.hypot(vel[0], vel[1])
+        chi = math.atan2(vel[1], vel[0]) if gs > 1.0 else float(estimate.rpy_rad[2])
+        chi_c = math.atan2(v_cmd[1], v_cmd[0])
+        v_air = float(estimate.airspeed_mps) if estimate.airspeed_mps is not None else gs
+        bank = math.atan(max(v_air, 5.0) * p.k_course * wrap_pi(chi_c - chi) / G)
+        bank = float(np.clip(bank, -self.max_bank_rad, self.max_bank_rad))
+        airspeed = float(np.clip(v_air + (math.hypot(v_cmd[0], v_cmd[1]) - gs), p.min_airspeed_mps, p.max_speed_mps))
+        down = self.law.hold_alt_down_m if self.law.hold_alt_down_m is not None else float(estimate.pos_ned_m[2] + self.law.error_ned_m[2])
+        h_cmd = -float(down)
+        cmd = self.autopilot(t_s, estimate, bank, h_cmd, airspeed)
+        self._status = self.law.status(t_s, estimate.pos_ned_m, airspeed, bank)
+        return cmd

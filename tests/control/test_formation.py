@@ -1,0 +1,112 @@
+"""Formation followers: the command moves a follower toward its slot given neighbour
+estimates; collision margin; hold without neighbours; a short closed loop on JSBSim where a
+quad follower converges on its slot behind a leader flying a mission."""
+
+import math
+
+import numpy as np
+import pytest
+
+from testbench.control.formation import FormationFollower, FormationLaw, FormationParams, formation_errors
+from testbench.core.interfaces import BuildContext, GeodeticOrigin
+from testbench.core.messages import NavEstimate
+from testbench.core.rotations import euler_to_quat
+from testbench.navigation.relative.types import RelativeEstimate
+
+SLOTS = {"lead": (0.0, 0.0, 0.0), "f1": (-50.0, -30.0, 0.0), "f2": (-50.0, 30.0, 0.0)}
+Z3 = np.zeros((3, 3))
+
+
+def _est(pos, vel=(0.0, 0.0, 0.0), yaw=0.0, t=0.0):
+    return NavEstimate(t, np.asarray(pos, float), np.asarray(vel, float), euler_to_quat([0.0, 0.0, yaw]),
+                       np.array([0.0, 0.0, yaw]), np.zeros(3), Z3, Z3, Z3)
+
+
+def _rel(peer, r, w=(0.0, 0.0, 0.0), t=0.0):
+    return RelativeEstimate(t, peer, np.asarray(r, float), np.asarray(w, float), np.eye(3) * 0.01, np.eye(3) * 0.01)
+
+
+def test_command_moves_follower_toward_slot():
+    law = FormationLaw(FormationParams(slots=SLOTS, leader_id="lead", k_slot=0.4, margin_m=5.0), "f1")
+    # Leader flies east at 5 m/s (course 90 deg); f1 sits 10 m too far behind and 5 m too high.
+    course = math.pi / 2
+    R = np.array([[0, -1, 0], [1, 0, 0], [0, 0, 1.0]])  # formation -> NED for course 90 deg
+    slot_rel = R @ (np.array(SLOTS["lead"]) - np.array(SLOTS["f1"]))  # where the leader should be
+    err = np.array([0.0, 10.0, 5.0])  # leader appears 10 m further east and 5 m lower than desired
+    own_vel = np.array([0.0, 5.0, 0.0])
+    v = None
+    for k in range(50):  # the leader's velocity = own velocity + zero relative velocity
+        v = law.velocity_command(0.1 * k, _est((0, 0, -100.0), own_vel, yaw=course, t=0.1 * k),
+                                 {"lead": _rel("lead", slot_rel + err, t=0.1 * k)})
+    assert law.course == pytest.approx(course, abs=1e-6)
+    np.testing.assert_allclose(law.error_ned_m, err, atol=1e-9)
+    # Feed-forward of the leader's velocity (5 m/s east) plus the slot correction toward err.
+    assert v[1] > 5.0 and v[2] > 0.0 and abs(v[0]) < 1e-6
+    assert np.dot(v - own_vel, err) > 0
+
+
+def test_consensus_over_two_neighbours_and_repulsion():
+    p = FormationParams(slots=SLOTS, leader_id="lead", leader_weight=1.0, margin_m=20.0, k_repulse=1.0, k_slot=0.1)
+    law = FormationLaw(p, "f1")
+    # Exactly in slot relative to both: zero error, zero command at rest.
+    est = _est((0, 0, -100.0), (1e-9, 0, 0))
+    table = {"lead": _rel("lead", (50.0, 30.0, 0.0)), "f2": _rel("f2", (0.0, 60.0, 0.0))}
+    v = law.velocity_command(0.0, est, table)
+    np.testing.assert_allclose(law.error_ned_m, 0.0, atol=1e-12)
+    np.testing.assert_allclose(v, 0.0, atol=1e-6)
+    # f2 estimated 8 m to the east (inside the 20 m margin): pushed west despite the slot error.
+    table["f2"] = _rel("f2", (0.0, 8.0, 0.0))
+    v = law.velocity_command(0.1, est, table)
+    assert v[1] < 0.0
+
+
+def test_hold_course_speed_and_altitude_without_neighbours():
+    law = FormationLaw(FormationParams(slots=SLOTS), "f2")
+    v0 = law.velocity_command(0.0, _est((0, 0, -100.0), (3.0, 4.0, 0.0), yaw=0.9), {})
+    v1 = law.velocity_command(1.0, _est((30, 40, -95.0), (3.0, 4.0, 0.0)), {"lead": _rel("lead", (1, 1, 1), t=-10.0)})
+    np.testing.assert_allclose(v0[:2], [3.0, 4.0])
+    np.testing.assert_allclose(v1[:2], [3.0, 4.0])
+    assert v1[2] < 0  # back up to the altitude where it lost its neighbours
+
+
+def test_formation_errors_for_scoring():
+    pos = {"lead": np.array([100.0, 0, -50]), "f1": np.array([50.0, -30, -50]), "f2": np.array([52.0, 30, -50])}
+    e = formation_errors(pos, 0.0, SLOTS, "lead")
+    np.testing.assert_allclose(e["f1"], 0.0, atol=1e-12)
+    np.testing.assert_allclose(e["f2"], [2.0, 0, 0])
+
+
+@pytest.mark.slow
+def test_quad_follower_holds_slot_behind_leader_on_jsbsim():
+    pytest.importorskip("jsbsim")
+    from testbench.control.evaluate import make_dynamics, truth_to_estimate
+    from testbench.control.evaluate_multirotor import waypoint_mission
+    from testbench.control.multirotor import MultirotorController
+    from testbench.dynamics.jsbsim_adapter import InitialCondition
+
+    origin = GeodeticOrigin(math.radians(34.0), math.radians(-117.0), 300.0)
+    ctx_l = BuildContext("lead", ("lead", "f1"), origin, physics_rate_hz=200.0)
+    ctx_f = BuildContext("f1", ("lead", "f1"), origin, physics_rate_hz=200.0)
+    mission = waypoint_mission(ctx_l, 60.0, points=[(400.0, 0.0), (400.0, 400.0)])
+    dl, df = make_dynamics("tb_quad", 200.0), make_dynamics("tb_quad", 200.0)
+    tl = dl.reset(InitialCondition(pos_ned_m=(0.0, 0.0, -60.0), heading_rad=0.0, airspeed_mps=0.0))
+    tf = df.reset(InitialCondition(pos_ned_m=(-30.0, -50.0, -55.0), heading_rad=0.0, airspeed_mps=0.0))
+    lead = MultirotorController(MultirotorController.Params(max_speed_mps=4.0), ctx=ctx_l, mission=mission, aircraft=dl.aircraft_meta)
+    fol = FormationFollower(FormationFollower.Params(slots=SLOTS, leader_id="lead", margin_m=10.0, max_speed_mps=8.0),
+                            ctx=ctx_f, aircraft=df.aircraft_meta)
+    rng = np.random.default_rng(0)
+    errs = []
+    for k in range(int(60.0 * 50)):  # 60 s at 50 Hz
+        t = k / 50.0
+        # The test builds the neighbour estimate from truth plus noise (the relnav aid's job).
+        rel = tl.pos_ned_m - tf.pos_ned_m + rng.normal(0, 0.2, 3)
+        table = {"lead": _rel("lead", rel, tl.vel_ned_mps - tf.vel_ned_mps, t)}
+        cl = lead.update(t, truth_to_estimate(tl, False))
+        cf = fol.update(t, truth_to_estimate(tf, False), table)
+        tl, tf = dl.step(cl, 0.02), df.step(cf, 0.02)
+        course = math.atan2(tl.vel_ned_mps[1], tl.vel_ned_mps[0])
+        errs.append(np.linalg.norm(formation_errors({"lead": tl.pos_ned_m, "f1": tf.pos_ned_m}, course, SLOTS, "lead")["f1"]))
+    errs = np.array(errs)
+    print(f"formation error: start {errs[0]:.1f} m, last 10 s max {errs[-500:].max():.2f} m")
+    assert errs[0] > 10.0
+    assert errs[-500:].max() < 3.0  # last 10 s: on the slot within 3 m while the leader cruises
