@@ -161,22 +161,24 @@ class ErrorStateEKF:
         S = H @ PHt + R
         S = 0.5 * (S + S.T)
         try:
-            S_inv_y = np.linalg.solve(S, y)
+            S_inv = np.linalg.inv(S)
         except np.linalg.LinAlgError:
             raise SimulationAborted(f"EKF {kind} update: singular innovation covariance",
                                     t_s=t_s, vehicle_id=self.vehicle_id) from None
-        nis = float(y @ S_inv_y)
+        nis = float(y @ S_inv @ y)
         accepted = bool(np.isfinite(nis)) and (
             not gate or self.gate_probability >= 1.0 or nis <= chi2_threshold(self.gate_probability, y.size)
         )
         if accepted:
-            K = np.linalg.solve(S, PHt.T).T  # P H^T S^-1 (S symmetric)
+            K = PHt @ S_inv
             dx = K @ y
             IKH = np.eye(N_STATES) - K @ H
-            P = IKH @ P @ IKH.T + K @ R @ K.T
+            P = IKH @ P @ IKH.T + K @ R @ K.T  # Joseph form
             self.inject(dx)
-            G = reset_jacobian(dx[IA])
-            P = G @ P @ G.T
+            # Covariance reset P <- G P G^T; G is the identity but for its attitude block.
+            Ga = reset_jacobian(dx[IA])[IA, IA]
+            P[IA, :] = Ga @ P[IA, :]
+            P[:, IA] = P[:, IA] @ Ga.T
             self.P = 0.5 * (P + P.T)
             self._check(f"{kind} update")
         return CorrectionInfo(t_s=float(t_s), kind=kind, innovation=y, innovation_cov=S,
@@ -200,10 +202,8 @@ class ErrorStateEKF:
         state_ok = all(math.isfinite(x) for x in (ins.lat_rad, ins.lon_rad, ins.h_m, *ins.vel, *ins.q))
         if not state_ok or not np.all(np.isfinite(P)) or np.any(np.diag(P) < 0.0):
             raise SimulationAborted(
-                f"EKF diverged after {where}: non-finite state or covariance "
-                f"(state finite: {state_ok}, min diag(P) = {np.nanmin(np.diag(P)):.3g})",
+                f"EKF diverged after {where}: non-finite state or covariance, or negative "
+                f"variance (state finite: {state_ok}, covariance finite: {bool(np.all(np.isfinite(P)))}, "
+                f"min variance {float(np.min(np.diag(P))):.3g})",
                 t_s=ins.t_s, vehicle_id=self.vehicle_id,
             )
-
-    def velocity_block(self) -> np.ndarray:
-        return self.P[IV, IV]

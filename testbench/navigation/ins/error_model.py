@@ -22,15 +22,16 @@ dg = (0, 0, 2 g / R) dp_D (the gravity gradient that makes the vertical channel 
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-from testbench.core.geodesy import OMEGA_IE_RPS, radii_of_curvature
+from testbench.core.geodesy import A_M, E2, OMEGA_IE_RPS, radii_of_curvature
 from testbench.core.rotations import (
     quat_conjugate,
     quat_multiply,
     quat_normalize,
     quat_to_rotvec,
-    rotvec_to_quat,
     skew,
 )
 
@@ -45,36 +46,33 @@ N_CORE = 15
 """Number of states that truth can be compared with (without the barometer bias)."""
 
 
-def continuous_F(lat_rad, h_m, vel_ned_mps, C_nb, f_n_mps2, tau_g_s, tau_a_s, tau_baro_s=np.inf):
+def continuous_F(lat_rad, h_m, vel_ned_mps, C_nb, f_n_mps2, tau_g_s, tau_a_s, tau_baro_s=math.inf):
     """Continuous-time error-state Jacobian F (16, 16) at one nominal state.
 
     lat_rad, h_m: nominal position; vel_ned_mps (3,); C_nb (3, 3) body->NED;
     f_n_mps2 (3,): specific force resolved in NED (C_nb f_b); tau_*: bias correlation times (s).
+    Written element by element with Python floats: it runs at the covariance rate of every
+    vehicle, where numpy's per-call overhead on 3-vectors would dominate.
     """
-    v = np.asarray(vel_ned_mps, float)
-    vn, ve, vd = v
-    r_m, r_n = radii_of_curvature(lat_rad)
-    rm, rn = r_m + h_m, r_n + h_m
-    sl, cl = np.sin(lat_rad), np.cos(lat_rad)
+    vn, ve, vd = (float(x) for x in vel_ned_mps)
+    fn, fe, fd = (float(x) for x in f_n_mps2)
+    lat, h = float(lat_rad), float(h_m)
+    sl, cl = math.sin(lat), math.cos(lat)
+    w2 = 1.0 - E2 * sl * sl
+    r_n = A_M / math.sqrt(w2)
+    r_m = r_n * (1.0 - E2) / w2
+    rm, rn = r_m + h, r_n + h
     tl = sl / cl
     w = OMEGA_IE_RPS
-    wie = np.array([w * cl, 0.0, -w * sl])
-    wen = np.array([ve / rn, -vn / rm, -ve * tl / rn])
+    # Earth rate w_ie and transport rate w_en in NED.
+    ien, ied = w * cl, -w * sl
+    enn, ene, end = ve / rn, -vn / rm, -ve * tl / rn
 
-    # d(w_ie)/d(dp): only through latitude, dL = dp_N / (R_M + h).
-    dwie_dp = np.zeros((3, 3))
-    dwie_dp[0, 0] = -w * sl / rm
-    dwie_dp[2, 0] = -w * cl / rm
-    # d(w_en)/d(dp): latitude (tan L) and height (dh = -dp_D).
-    dwen_dp = np.zeros((3, 3))
-    dwen_dp[2, 0] = -ve / (cl * cl * rn * rm)
-    dwen_dp[0, 2] = ve / rn**2
-    dwen_dp[1, 2] = -vn / rm**2
-    dwen_dp[2, 2] = -ve * tl / rn**2
-    dwen_dv = np.zeros((3, 3))
-    dwen_dv[0, 1] = 1.0 / rn
-    dwen_dv[1, 0] = -1.0 / rm
-    dwen_dv[2, 1] = -tl / rn
+    # d(w_ie)/d(dp) (through latitude, dL = dp_N / (R_M + h)); d(w_en)/d(dp) (latitude and
+    # height, dh = -dp_D); d(w_en)/d(dv).
+    dwie = ((-w * sl / rm, 0.0, 0.0), (0.0, 0.0, 0.0), (-w * cl / rm, 0.0, 0.0))
+    dwen = ((0.0, 0.0, ve / rn**2), (0.0, 0.0, -vn / rm**2), (-ve / (cl * cl * rn * rm), 0.0, -ve * tl / rn**2))
+    dwen_dv = ((0.0, 1.0 / rn, 0.0), (-1.0 / rm, 0.0, 0.0), (0.0, -tl / rn, 0.0))
 
     F = np.zeros((N_STATES, N_STATES))
     # Position: derivative of the curvilinear error map (see module docstring).
@@ -83,24 +81,34 @@ def continuous_F(lat_rad, h_m, vel_ned_mps, C_nb, f_n_mps2, tau_g_s, tau_a_s, ta
     F[1, 0] = ve * tl / rm
     F[1, 1] = -vd / rn - vn * tl / rm
     F[1, 2] = ve / rn
-    F[IP, IV] = np.eye(3)
+    F[0, 3] = F[1, 4] = F[2, 5] = 1.0
 
-    sv = skew(v)
-    F[IV, IP] = sv @ (2.0 * dwie_dp + dwen_dp)
-    g_over_r = 2.0 * 9.80665 / np.sqrt(r_m * r_n)  # |dg/dh| ~ 2 g / R (free-air gradient)
-    F[5, 2] += g_over_r
-    F[IV, IV] = sv @ dwen_dv - skew(2.0 * wie + wen)
-    F[IV, IA] = -skew(f_n_mps2)
-    F[IV, IBA] = -C_nb
-
-    F[IA, IP] = -(dwie_dp + dwen_dp)
-    F[IA, IV] = -dwen_dv
-    F[IA, IA] = -skew(wie + wen)
-    F[IA, IBG] = -C_nb
-
-    F[IBG, IBG] = -np.eye(3) / tau_g_s
-    F[IBA, IBA] = -np.eye(3) / tau_a_s
-    F[IBB, IBB] = -1.0 / tau_baro_s if np.isfinite(tau_baro_s) else 0.0
+    sv = ((0.0, -vd, ve), (vd, 0.0, -vn), (-ve, vn, 0.0))  # [v x]
+    a = (2.0 * ien + enn, ene, 2.0 * ied + end)  # 2 w_ie + w_en
+    sa = ((0.0, -a[2], a[1]), (a[2], 0.0, -a[0]), (-a[1], a[0], 0.0))
+    for r in range(3):
+        for c in range(3):
+            F[3 + r, c] = sum(sv[r][k] * (2.0 * dwie[k][c] + dwen[k][c]) for k in range(3))
+            F[3 + r, 3 + c] = sum(sv[r][k] * dwen_dv[k][c] for k in range(3)) - sa[r][c]
+            F[6 + r, c] = -(dwie[r][c] + dwen[r][c])
+            F[6 + r, 3 + c] = -dwen_dv[r][c]
+    F[5, 2] += 2.0 * 9.80665 / math.sqrt(r_m * r_n)  # |dg/dh| ~ 2 g / R (free-air gradient)
+    # -[f_n x]
+    F[3, 7], F[3, 8] = fd, -fe
+    F[4, 6], F[4, 8] = -fd, fn
+    F[5, 6], F[5, 7] = fe, -fn
+    # -[w_in x]
+    b = (ien + enn, ene, ied + end)
+    F[6, 7], F[6, 8] = b[2], -b[1]
+    F[7, 6], F[7, 8] = -b[2], b[0]
+    F[8, 6], F[8, 7] = b[1], -b[0]
+    C = np.asarray(C_nb, float)
+    F[IV, IBA] = -C
+    F[IA, IBG] = -C
+    d = np.arange(9, 15)
+    F[d[:3], d[:3]] = -1.0 / tau_g_s
+    F[d[3:], d[3:]] = -1.0 / tau_a_s
+    F[IBB, IBB] = -1.0 / tau_baro_s if math.isfinite(tau_baro_s) else 0.0
     return F
 
 
@@ -133,10 +141,11 @@ def discretize(F: np.ndarray, qc_diag: np.ndarray, T: float) -> tuple[np.ndarray
 
 
 def reset_jacobian(dphi: np.ndarray, n: int = N_STATES) -> np.ndarray:
-    """Jacobian G of the error reset after injecting dphi into the attitude (global error):
-    Exp(phi+) = Exp(phi) Exp(-dphi) gives d phi+/d phi = I + 1/2 [dphi x]; P+ = G P G^T."""
+    """Jacobian G (n, n) of the error reset after injecting dphi into the attitude (global
+    error): Exp(phi+) = Exp(phi) Exp(-dphi) gives d phi+/d phi = I + 1/2 [dphi x]; P+ = G P G^T."""
     G = np.eye(n)
-    G[IA, IA] += 0.5 * skew(dphi)
+    x, y, z = 0.5 * float(dphi[0]), 0.5 * float(dphi[1]), 0.5 * float(dphi[2])
+    G[6:9, 6:9] += ((0.0, -z, y), (z, 0.0, -x), (-y, x, 0.0))
     return G
 
 
@@ -145,14 +154,27 @@ def inject_nav(lat_rad, lon_rad, h_m, vel_ned_mps, q_nb_wxyz, dx):
 
     The inverse of `nav_error` (exactly for position and velocity, to rounding for attitude).
     """
-    dx = np.asarray(dx, float)
-    r_m, r_n = radii_of_curvature(lat_rad)
-    lat1 = lat_rad + dx[0] / (r_m + h_m)
-    lon1 = lon_rad + dx[1] / ((r_n + h_m) * np.cos(lat_rad))
-    h1 = h_m - dx[2]
-    vel1 = np.asarray(vel_ned_mps, float) + dx[IV]
-    q1 = quat_normalize(quat_multiply(rotvec_to_quat(dx[IA]), q_nb_wxyz))
-    return float(lat1), float(lon1), float(h1), vel1, q1
+    lat, h = float(lat_rad), float(h_m)
+    sl = math.sin(lat)
+    w2 = 1.0 - E2 * sl * sl
+    r_n = A_M / math.sqrt(w2)
+    r_m = r_n * (1.0 - E2) / w2
+    d = [float(x) for x in dx[:9]]
+    lat1 = lat + d[0] / (r_m + h)
+    lon1 = float(lon_rad) + d[1] / ((r_n + h) * math.cos(lat))
+    h1 = h - d[2]
+    vel1 = np.array([float(vel_ned_mps[i]) + d[3 + i] for i in range(3)])
+    a = math.sqrt(d[6] ** 2 + d[7] ** 2 + d[8] ** 2)
+    k = 0.5 - a * a / 48.0 if a < 1e-4 else math.sin(0.5 * a) / a
+    aw, ax, ay, az = math.cos(0.5 * a), k * d[6], k * d[7], k * d[8]
+    bw, bx, by, bz = (float(x) for x in q_nb_wxyz)
+    q1 = np.array([  # Exp(phi) * q (Hamilton)
+        aw * bw - ax * bx - ay * by - az * bz,
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+    ])
+    return lat1, lon1, h1, vel1, quat_normalize(q1)
 
 
 def nav_error(lat_rad, lon_rad, h_m, vel_ned_mps, q_nb_wxyz,

@@ -7,6 +7,7 @@ Each function takes the filter (`ErrorStateEKF`) for its nominal state and retur
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
 
@@ -38,16 +39,35 @@ def gnss_velocity(ekf, vel_ned_mps, sigma_ned_mps):
     return y, H, np.diag(np.square(sigma_ned_mps))
 
 
+def _c_en(lat_rad: float, lon_rad: float) -> np.ndarray:
+    """C_en (3, 3): NED at (lat, lon) -> ECEF (geodesy.C_en for one point, without overhead)."""
+    sl, cl, so, co = math.sin(lat_rad), math.cos(lat_rad), math.sin(lon_rad), math.cos(lon_rad)
+    return np.array([[-sl * co, -so, -cl * co], [-sl * so, co, -cl * so], [cl, 0.0, -sl]])
+
+
+def _ecef(lat_rad: float, lon_rad: float, h_m: float) -> np.ndarray:
+    sl, cl = math.sin(lat_rad), math.cos(lat_rad)
+    r_n = geodesy.A_M / math.sqrt(1.0 - geodesy.E2 * sl * sl)
+    return np.array([(r_n + h_m) * cl * math.cos(lon_rad), (r_n + h_m) * cl * math.sin(lon_rad),
+                     (r_n * (1.0 - geodesy.E2) + h_m) * sl])
+
+
+@lru_cache(maxsize=16)
+def _origin_frame(origin: GeodeticOrigin) -> tuple[np.ndarray, np.ndarray]:
+    """(ECEF position of the origin (3,), C_ne at the origin (3, 3): ECEF -> origin NED)."""
+    return _ecef(origin.lat_rad, origin.lon_rad, origin.alt_m), _c_en(origin.lat_rad, origin.lon_rad).T
+
+
 def origin_rotation(lat_rad: float, lon_rad: float, origin: GeodeticOrigin) -> np.ndarray:
     """R_on (3, 3): vehicle-local NED -> NED at the scenario origin (v_o = R_on v_n)."""
-    return geodesy.C_en(origin.lat_rad, origin.lon_rad).T @ geodesy.C_en(lat_rad, lon_rad)
+    return _origin_frame(origin)[1] @ _c_en(lat_rad, lon_rad)
 
 
 def nominal_pos_ned(ekf, origin: GeodeticOrigin) -> np.ndarray:
     """Nominal position (3,) in local NED at the scenario origin (m)."""
     ins = ekf.ins
-    return geodesy.geodetic_to_ned(ins.lat_rad, ins.lon_rad, ins.h_m,
-                                   origin.lat_rad, origin.lon_rad, origin.alt_m)
+    r0, c_ne0 = _origin_frame(origin)
+    return c_ne0 @ (_ecef(ins.lat_rad, ins.lon_rad, ins.h_m) - r0)
 
 
 def position_ned(ekf, pos_ned_m, cov_ned_m2, origin: GeodeticOrigin):
