@@ -27,7 +27,6 @@ from scipy.stats import chi2
 
 from testbench.core.errors import SimulationAborted
 from testbench.core.messages import CorrectionInfo
-from testbench.core.rotations import quat_to_dcm
 from testbench.navigation.ins.error_model import (
     IA,
     IBA,
@@ -96,7 +95,13 @@ class ErrorStateEKF:
 
     @property
     def C_nb(self) -> np.ndarray:
-        return quat_to_dcm(np.array(self.ins.q))
+        """Nominal attitude R_nb (3, 3), body FRD -> NED."""
+        qw, qx, qy, qz = self.ins.q
+        return np.array([
+            [1 - 2 * (qy * qy + qz * qz), 2 * (qx * qy - qw * qz), 2 * (qx * qz + qw * qy)],
+            [2 * (qx * qy + qw * qz), 1 - 2 * (qx * qx + qz * qz), 2 * (qy * qz - qw * qx)],
+            [2 * (qx * qz - qw * qy), 2 * (qy * qz + qw * qx), 1 - 2 * (qx * qx + qy * qy)],
+        ])
 
     def covariance(self) -> np.ndarray:
         """Current error covariance (16, 16), with any pending propagation applied."""
@@ -199,8 +204,9 @@ class ErrorStateEKF:
     def _check(self, where: str) -> None:
         P = self.P
         ins = self.ins
-        state_ok = all(math.isfinite(x) for x in (ins.lat_rad, ins.lon_rad, ins.h_m, *ins.vel, *ins.q))
-        if not state_ok or not np.all(np.isfinite(P)) or np.any(np.diag(P) < 0.0):
+        state_ok = math.isfinite(ins.lat_rad + ins.lon_rad + ins.h_m + sum(ins.vel) + sum(ins.q))
+        # A sum is finite only if every element is (inf - inf is nan).
+        if not state_ok or not math.isfinite(float(P.sum())) or float(P.diagonal().min()) < 0.0:
             raise SimulationAborted(
                 f"EKF diverged after {where}: non-finite state or covariance, or negative "
                 f"variance (state finite: {state_ok}, covariance finite: {bool(np.all(np.isfinite(P)))}, "

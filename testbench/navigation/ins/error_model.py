@@ -83,15 +83,14 @@ def continuous_F(lat_rad, h_m, vel_ned_mps, C_nb, f_n_mps2, tau_g_s, tau_a_s, ta
     F[1, 2] = ve / rn
     F[0, 3] = F[1, 4] = F[2, 5] = 1.0
 
-    sv = ((0.0, -vd, ve), (vd, 0.0, -vn), (-ve, vn, 0.0))  # [v x]
+    sv = np.array(((0.0, -vd, ve), (vd, 0.0, -vn), (-ve, vn, 0.0)))  # [v x]
     a = (2.0 * ien + enn, ene, 2.0 * ied + end)  # 2 w_ie + w_en
-    sa = ((0.0, -a[2], a[1]), (a[2], 0.0, -a[0]), (-a[1], a[0], 0.0))
-    for r in range(3):
-        for c in range(3):
-            F[3 + r, c] = sum(sv[r][k] * (2.0 * dwie[k][c] + dwen[k][c]) for k in range(3))
-            F[3 + r, 3 + c] = sum(sv[r][k] * dwen_dv[k][c] for k in range(3)) - sa[r][c]
-            F[6 + r, c] = -(dwie[r][c] + dwen[r][c])
-            F[6 + r, 3 + c] = -dwen_dv[r][c]
+    sa = np.array(((0.0, -a[2], a[1]), (a[2], 0.0, -a[0]), (-a[1], a[0], 0.0)))
+    dwie, dwen, dwen_dv = np.array(dwie), np.array(dwen), np.array(dwen_dv)
+    F[IV, IP] = sv @ (2.0 * dwie + dwen)
+    F[IV, IV] = sv @ dwen_dv - sa
+    F[IA, IP] = -(dwie + dwen)
+    F[IA, IV] = -dwen_dv
     F[5, 2] += 2.0 * 9.80665 / math.sqrt(r_m * r_n)  # |dg/dh| ~ 2 g / R (free-air gradient)
     # -[f_n x]
     F[3, 7], F[3, 8] = fd, -fe
@@ -134,9 +133,10 @@ def discretize(F: np.ndarray, qc_diag: np.ndarray, T: float) -> tuple[np.ndarray
     """Transition Phi = I + F T + (F T)^2 / 2 and process noise Qd (trapezoidal rule,
     Qd = T/2 (Phi Qc Phi^T + Qc)), both second order in T; no matrix exponential."""
     FT = F * T
-    Phi = np.eye(F.shape[0]) + FT + 0.5 * (FT @ FT)
+    Phi = FT + 0.5 * (FT @ FT)
+    Phi.flat[:: F.shape[0] + 1] += 1.0
     Qd = (0.5 * T) * ((Phi * qc_diag) @ Phi.T)
-    Qd[np.diag_indices_from(Qd)] += 0.5 * T * qc_diag
+    Qd.flat[:: F.shape[0] + 1] += 0.5 * T * qc_diag
     return Phi, Qd
 
 
