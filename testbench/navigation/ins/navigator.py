@@ -66,8 +66,8 @@ class ImuNoiseParams(ParamsModel):
 class MeasurementSigmas(ParamsModel):
     """Measurement noise overrides; None uses the message's own figure or the default."""
 
-    baro_m: float = pydantic.Field(1.0, gt=0)
-    mag_heading_deg: float = pydantic.Field(2.0, gt=0)
+    baro_m: float = pydantic.Field(0.5, gt=0)
+    mag_heading_deg: float = pydantic.Field(1.0, gt=0)
     mag_T: float = pydantic.Field(1.0e-6, gt=0)
     gnss_pos_m: float | None = pydantic.Field(None, gt=0)
     gnss_vel_mps: float | None = pydantic.Field(None, gt=0)
@@ -90,6 +90,10 @@ class InsEkfNavigator(Navigator):
         baro_bias_rw_m_sqrt_s: float = pydantic.Field(0.01, ge=0.0)
         use_gnss: bool = True
         use_gnss_velocity: bool = True
+        gnss_min_interval_s: float = pydantic.Field(1.0, ge=0.0)
+        """GNSS fixes closer than this to the last one used are skipped: receiver position
+        errors are correlated over tens of seconds, and fusing every 5-10 Hz fix as if it
+        were independent makes the covariance overconfident."""
         use_baro: bool = True
         use_mag: bool = True
         mag_mode: Literal["heading", "vector"] = "heading"
@@ -122,6 +126,7 @@ class InsEkfNavigator(Navigator):
         self._mag_model: OnboardMagneticModel | None = None
         self._airspeed: float | None = None
         self._initialized = False
+        self._last_gnss_t = -math.inf
 
     # ----------------------------------------------------------- Navigator API
     def initialize(self, t_s: float, initial: NavEstimate) -> None:
@@ -232,7 +237,10 @@ class InsEkfNavigator(Navigator):
         sigma = p.meas_sigma.mag_heading_deg * DEG_TO_RAD
         return ekf.update("mag_heading", t, *meas.mag_heading(ekf, m.field_b_T, B_n, sigma))
 
-    def _correct_gnss(self, fix: GnssFix, t: float) -> CorrectionInfo:
+    def _correct_gnss(self, fix: GnssFix, t: float) -> CorrectionInfo | None:
+        if t - self._last_gnss_t < self.params.gnss_min_interval_s - 1e-9:
+            return None
+        self._last_gnss_t = t
         ekf, s = self.ekf, self.params.meas_sigma
         pos_sigma = np.full(3, s.gnss_pos_m) if s.gnss_pos_m else np.asarray(fix.pos_sigma_m, float)
         y, H, R = meas.gnss_position(ekf, fix.lat_rad, fix.lon_rad, fix.alt_m, pos_sigma)
