@@ -226,6 +226,3 @@ def validate_components(scenario: Scenario, where: str) -> None:
                 continue
             cls = registry.resolve_class(kind, spec.type, where=f"{base}.{label}.type")
             registry.validate_params(cls, spec.params, where=f"{base}.{label}.params")
-    if scenario.formation is not None:
-        cls = registry.resolve_class("formation", scenario.formation.type, where=f"{where}: formation.type")
-        registry.validate_params(cls, scenario.formation.params, where=f"{where}: formation.params")

@@ -139,6 +139,22 @@ class Phases(pydantic.BaseModel):
     turn_rate_deg_s: float = 3.0
 
 
+class Formation(pydantic.BaseModel):
+    """The formation geometry, for scoring: each vehicle's slot (forward_m, right_m, down_m) in
+    the formation frame (forward along the leader's course). Followers' controllers carry the
+    same slots in their own params (a YAML anchor avoids writing them twice)."""
+
+    model_config = _CFG
+    leader: str
+    slots: dict[str, tuple[float, float, float]]
+
+    @model_validator(mode="after")
+    def _leader_has_slot(self) -> "Formation":
+        if self.leader not in self.slots:
+            raise ValueError(f"the leader {self.leader!r} needs a slot")
+        return self
+
+
 class Scenario(pydantic.BaseModel):
     """A whole scenario file."""
 
@@ -152,7 +168,7 @@ class Scenario(pydantic.BaseModel):
     epoch_year: float = Field(default=2025.5, ge=2025.0, le=2030.0, description="decimal year (magnetic model)")
     world: World
     vehicles: list[Vehicle] = Field(min_length=1)
-    formation: ComponentSpec | None = None
+    formation: Formation | None = None
     phases: Phases = Field(default_factory=Phases)
     thresholds: dict[str, Threshold] = Field(default_factory=dict)
 
@@ -164,6 +180,15 @@ class Scenario(pydantic.BaseModel):
         if dup:
             raise ValueError(f"duplicate vehicle ids: {sorted(dup)}")
         return vehicles
+
+    @model_validator(mode="after")
+    def _formation_ids(self) -> "Scenario":
+        if self.formation is not None:
+            ids = {v.id for v in self.vehicles}
+            unknown = sorted(set(self.formation.slots) - ids)
+            if unknown:
+                raise ValueError(f"formation.slots names vehicles that do not exist: {unknown}")
+        return self
 
     def vehicle(self, vehicle_id: str) -> Vehicle:
         for v in self.vehicles:

@@ -27,7 +27,6 @@ _BUILTIN_PACKAGES: dict[str, tuple[str, ...]] = {
     "matcher": ("testbench.navigation.ismn",),
     "detector": ("testbench.navigation.relative",),
     "relative_estimator": ("testbench.navigation.relative",),
-    "formation": ("testbench.control",),
     "aid": ("testbench.navigation",),
 }
 

@@ -1,15 +1,9 @@
-"""Navigation: INS/EKF (ins), scene matching (ismn), relative navigation (relative).
+"""Navigation: INS/EKF (ins), scene matching (ismn), relative navigation (relative), and the
+aids that connect them to the engine.
 
-Importing this package registers the built-in navigators.
+Importing this package registers the built-in navigators ("truth_passthrough", "ins_ekf"),
+matchers ("ncc", "phase", "orb", "sift"), detectors ("led", "oracle", "cnn") and aids
+("ismn", "relnav").
 """
 
-import importlib
-import importlib.util
-
-from testbench.navigation import ins  # noqa: F401  (registers `ins_ekf`)
-
-# Optional parts written alongside this package: import them when they exist.
-for _name in ("testbench.navigation.passthrough", "testbench.navigation.ismn"):
-    _spec = importlib.util.find_spec(_name)
-    if _spec is not None and _spec.origin is not None:  # a module or a package with __init__.py
-        importlib.import_module(_name)
+from testbench.navigation import ins, ismn, ismn_aid, passthrough, relative  # noqa: F401

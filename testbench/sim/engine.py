@@ -61,8 +61,11 @@ class Engine:
         realtime: bool = False,
         on_progress: Callable[[float], None] | None = None,
         frame_sink: Callable[[str, str, Any], None] | None = None,
+        formation: Any = None,
     ):
         self.vehicles = vehicles
+        self.by_id = {v.id: v for v in vehicles}
+        self.formation = formation
         self.world = world
         self.dt_s = 1.0 / physics_rate_hz
         self.n_ticks = int(round(duration_s * physics_rate_hz))
@@ -102,7 +105,7 @@ class Engine:
                     self._sense(v, k, t_s, truths)
                 for v in self.vehicles:
                     if k % v.control_every == 0:
-                        v.command = v.controller.update(t_s, v.navigator.estimate())
+                        v.command = v.controller.update(t_s, v.navigator.estimate(), self._reference(v, t_s))
                 if k % self.record_every == 0:
                     for v in self.vehicles:
                         truth = v.dynamics.truth()
@@ -110,6 +113,8 @@ class Engine:
                             v.id, truth, v.navigator.estimate(), v.command_values(), v.controller.status(),
                             gnss_available=(t_s - v.last_gnss_t_s) <= v.gnss_timeout_s,
                         )
+                    if self.formation is not None:
+                        self._record_formation(t_s)
                 if k >= self.n_ticks:
                     break
                 step = min(self._gcd - (k % self._gcd), self.n_ticks - k)
@@ -149,18 +154,74 @@ class Engine:
             self._deliver(v, m)
 
     def _deliver(self, v: VehicleRuntime, m: Any) -> None:
-        """Give a measurement to the aids that want it, then to the navigator."""
+        """Give a measurement to the aids that want it, then everything to the navigator; then
+        record what the aids did (with truth filled in here, the only place it meets them)."""
         outputs = [m]
+        attempts = []
         for aid in v.aids:
             if aid.accepts(m):
                 produced, diag = aid.process(m, v.navigator.estimate())
                 outputs.extend(produced)
-                if diag is not None:
-                    for table, row in diag.event_rows(v.id):
-                        self.recorder.event(table, **row)
+                attempts.append((diag, produced))
+        infos: dict[int, Any] = {}
         for out in outputs:
             if isinstance(out, GnssFix):
                 v.last_gnss_t_s = out.t_s
             info = v.navigator.correct(out)
             if info is not None:
+                infos[id(out)] = info
                 self.recorder.correction(v.id, info)
+        for diag, produced in attempts:
+            if diag is None:
+                continue
+            verdicts = [infos[id(p)].accepted for p in produced if id(p) in infos]
+            for table, row in diag.event_rows(v.id):
+                if "accepted" in row and row["accepted"] is None:
+                    row["accepted"] = bool(verdicts) and all(verdicts)
+                self._fill_truth(row, v)
+                self.recorder.event(table, **row)
+            for name, arrays in getattr(diag, "artifacts", lambda: [])():
+                self.recorder.artifact(name, arrays)
+
+    def _fill_truth(self, row: dict[str, Any], v: VehicleRuntime) -> None:
+        """Fill an aid's truth placeholders (truth_* columns) from the dynamics at this tick:
+        relative truth (peer minus self, NED) for rows with a peer_id, else the vehicle's own."""
+        if "truth_north_m" not in row:
+            return
+        me = v.dynamics.truth()
+        peer = self.by_id.get(row.get("peer_id")) if "peer_id" in row else None
+        if "peer_id" in row:
+            rel = peer.dynamics.truth().pos_ned_m - me.pos_ned_m if peer is not None else (math.nan,) * 3
+            row["truth_north_m"], row["truth_east_m"], row["truth_down_m"] = (float(x) for x in rel)
+            return
+        row["truth_north_m"], row["truth_east_m"], row["truth_down_m"] = (float(x) for x in me.pos_ned_m)
+        if "truth_roll_rad" in row:
+            row["truth_roll_rad"] = float(me.rpy_rad[0])
+        if "truth_height_agl_m" in row:
+            row["truth_height_agl_m"] = float(me.height_agl_m)
+
+    @staticmethod
+    def _reference(v: VehicleRuntime, t_s: float) -> Any:
+        """What the vehicle's aids hand its controller (e.g. the relnav NeighbourTable)."""
+        ref = None
+        for aid in v.aids:
+            fn = getattr(aid, "controller_input", None)
+            if fn is not None:
+                out = fn(t_s)
+                if out is not None:
+                    ref = out
+        return ref
+
+    def _record_formation(self, t_s: float) -> None:
+        """Slot errors from TRUTH: each vehicle minus (leader + R(leader course) (slot - slot_leader))."""
+        from testbench.control.formation import formation_errors
+
+        f = self.formation
+        leader = self.by_id[f.leader].dynamics.truth()
+        course = math.atan2(leader.vel_ned_mps[1], leader.vel_ned_mps[0])
+        pos = {vid: self.by_id[vid].dynamics.truth().pos_ned_m for vid in f.slots}
+        for vid, err in formation_errors(pos, course, {k: tuple(s) for k, s in f.slots.items()}, f.leader).items():
+            self.recorder.event(
+                "formation", t_s=t_s, vehicle_id=vid,
+                slot_error_north_m=float(err[0]), slot_error_east_m=float(err[1]), slot_error_down_m=float(err[2]),
+            )

@@ -53,6 +53,7 @@ class Recorder:
         self._on_leg: list[bool] = []
         self._gnss: list[bool] = []
         self._events: dict[str, list[dict[str, Any]]] = {}
+        self._artifacts: dict[str, dict[str, np.ndarray]] = {}
 
     def record(self, vehicle_id: str, truth: TruthState, est: NavEstimate, command_values: tuple[float, ...], status: GuidanceStatus | None, gnss_available: bool) -> None:
         """One telemetry row (truth at the tick, the estimate the controller last saw)."""
@@ -121,6 +122,10 @@ class Recorder:
         """A row of an event table (events/<table>.parquet); rows of a table share keys."""
         self._events.setdefault(table, []).append(row)
 
+    def artifact(self, name: str, arrays: dict[str, np.ndarray]) -> None:
+        """Arrays saved as DIR/<name>.npz (e.g. ISMN example images for the report)."""
+        self._artifacts[name] = arrays
+
     @property
     def n_rows(self) -> int:
         return len(self._vehicle)
@@ -146,6 +151,10 @@ class Recorder:
             (out_dir / "events").mkdir(exist_ok=True)
             _write_parquet(table, out_dir / "events" / f"{name}.parquet")
         write_tum_files(tel, out_dir / "trajectories")
+        for name, arrays in self._artifacts.items():
+            path = out_dir / f"{name}.npz"
+            path.parent.mkdir(parents=True, exist_ok=True)
+            np.savez_compressed(path, **arrays)
 
 
 def _write_parquet(table: pa.Table, path: Path) -> None:

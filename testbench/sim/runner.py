@@ -69,7 +69,7 @@ def build_engine(
     recorder = Recorder()
     engine = Engine(
         vehicles, world, scn.physics_rate_hz, scn.duration_s, record_every, recorder,
-        realtime=realtime, on_progress=on_progress, frame_sink=frame_sink,
+        realtime=realtime, on_progress=on_progress, frame_sink=frame_sink, formation=scn.formation,
     )
     return engine, world, recorder
 

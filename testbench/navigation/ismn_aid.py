@@ -1,0 +1,125 @@
+"""The scene-matching aid "ismn": frames of a downward camera + the INS estimate + the onboard
+reference map -> position fixes for the navigator (paper section 2.1).
+
+It wraps `ismn.IsmnPipeline` for the engine: it takes the camera's intrinsics and mounting from
+the camera sensor, the reference map and elevation the vehicle carries (never the imagery the
+camera renders, unless the scenario says so and is labelled same-raster), and reports each
+attempt as a row of events/ismn.parquet. Truth columns of those rows are left as placeholders
+that the engine fills: this module never sees truth.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pydantic
+
+from testbench.core.errors import InputError
+from testbench.core.interfaces import BuildContext, NavigationAid
+from testbench.core.messages import NavEstimate, PositionFix
+from testbench.core.registry import ParamsModel, build, register
+from testbench.navigation.ismn import IsmnParams, IsmnPipeline
+
+_NAN = float("nan")
+
+
+class MatcherSpec(ParamsModel):
+    type: str = "ncc"
+    params: dict = {}
+
+
+@dataclass
+class IsmnAttempt:
+    """One frame's outcome, turned into recorder rows after the navigator has seen the fix."""
+
+    t_s: float
+    fix: PositionFix | None
+    diag: Any
+    same_raster: bool
+    keep_example: bool
+
+    def event_rows(self, vehicle_id: str) -> list[tuple[str, dict]]:
+        d = self.diag
+        lat = d.latency_ms
+        fix = self.fix
+        cov = fix.cov_ned_m2 if fix is not None else None
+        row = dict(
+            t_s=self.t_s, vehicle_id=vehicle_id, attempted=True, fix=fix is not None, accepted=None,
+            fix_north_m=float(fix.pos_ned_m[0]) if fix is not None else _NAN,
+            fix_east_m=float(fix.pos_ned_m[1]) if fix is not None else _NAN,
+            fix_down_m=float(fix.pos_ned_m[2]) if fix is not None else _NAN,
+            sigma_north_m=math.sqrt(cov[0, 0]) if cov is not None else _NAN,
+            sigma_east_m=math.sqrt(cov[1, 1]) if cov is not None else _NAN,
+            quality=float(fix.quality) if fix is not None else float(getattr(d, "peak_quality", 0.0)),
+            latency_ms=float(lat.get("ortho_to_fix", lat.get("total", _NAN))),
+            total_ms=float(lat.get("total", _NAN)),
+            reason=str(getattr(d, "reason", "")),
+            same_raster=self.same_raster,
+            truth_north_m=_NAN, truth_east_m=_NAN, truth_down_m=_NAN, truth_roll_rad=_NAN, truth_height_agl_m=_NAN,
+        )
+        return [("ismn", row)]
+
+    def artifacts(self) -> list[tuple[str, dict[str, np.ndarray]]]:
+        """Images for the report's ISMN examples (camera thumbnail, ortho, map window)."""
+        d = self.diag
+        if not self.keep_example or getattr(d, "ortho", None) is None:
+            return []
+        arrays = {"camera": d.frame_thumb, "ortho": d.ortho, "map_window": d.map_window, "t_s": np.array(self.t_s)}
+        return [(f"ismn_examples/t{self.t_s:08.2f}", {k: v for k, v in arrays.items() if v is not None})]
+
+
+@register("aid", "ismn")
+class IsmnAid(NavigationAid):
+    """Scene-matching position fixes from the frames of one camera sensor.
+
+    Params: camera (the sensor's name), matcher ({type, params}: ncc, phase, orb, sift or
+    "module:Class"), pipeline (IsmnParams: window sigma, working gsd, quality floor ...),
+    every_n_frames (use one frame in N), example_every_s (keep images for the report).
+    """
+
+    class Params(ParamsModel):
+        camera: str
+        matcher: MatcherSpec = MatcherSpec()
+        pipeline: dict = {}
+        every_n_frames: int = pydantic.Field(1, ge=1)
+        example_every_s: float = pydantic.Field(60.0, gt=0)
+
+    def __init__(self, params: Params, *, ctx: BuildContext, sensors: dict, onboard: dict, **_: Any):
+        self.params = params
+        where = f"vehicles[{ctx.vehicle_id}].aids[ismn]"
+        sensor = sensors.get(params.camera)
+        if sensor is None:
+            raise InputError(f"{where}.params.camera: no sensor named {params.camera!r} on this vehicle (have: {', '.join(sensors) or 'none'})")
+        cam, mount = getattr(sensor, "camera", None), getattr(sensor, "mount", None)
+        if cam is None or mount is None:
+            raise InputError(f"{where}.params.camera: sensor {params.camera!r} is not a camera")
+        reference = onboard["reference_map"]()
+        if reference is None:
+            raise InputError(f"{where}: scene matching needs world.reference_map (or world.imagery)")
+        try:
+            pipe_params = IsmnParams.model_validate(params.pipeline)
+        except pydantic.ValidationError as exc:
+            from testbench.core.registry import format_validation_error
+
+            raise InputError(format_validation_error(exc, f"{where}.params.pipeline")) from None
+        matcher = build("matcher", params.matcher.type, params.matcher.params, f"{where}.params.matcher", ctx=ctx)
+        self.pipeline = IsmnPipeline(cam, mount, reference, onboard["reference_elevation"](), matcher, pipe_params)
+        self.same_raster = bool(onboard.get("same_raster", False))
+        self._n = 0
+        self._next_example_t = 0.0
+
+    def accepts(self, measurement: Any) -> bool:
+        return getattr(measurement, "camera_name", None) == self.params.camera and hasattr(measurement, "image")
+
+    def process(self, measurement: Any, estimate: NavEstimate) -> tuple[list, IsmnAttempt | None]:
+        self._n += 1
+        if (self._n - 1) % self.params.every_n_frames:
+            return [], None
+        fix, diag = self.pipeline.process(measurement.image, measurement.t_s, estimate)
+        keep = measurement.t_s >= self._next_example_t and getattr(diag, "ortho", None) is not None
+        if keep:
+            self._next_example_t = measurement.t_s + self.params.example_every_s
+        return ([fix] if fix is not None else []), IsmnAttempt(measurement.t_s, fix, diag, self.same_raster, keep)
