@@ -26,13 +26,27 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from testbench.control.paths import ArcSegment, LineSegment, Segment, passed_end
+from testbench.control.paths import ArcSegment, Segment, passed_end_ne, switching_normal_ne
 from testbench.core.units import STANDARD_GRAVITY_MPS2
+
+HALF_PI = 0.5 * math.pi
 
 
 def l1_distance_m(ground_speed_mps: float, period_s: float, damping: float) -> float:
     """L1 = zeta T V / pi (m)."""
     return damping * period_s * ground_speed_mps / math.pi
+
+
+def l1_lateral_accel_ne(p_n_m: float, p_e_m: float, v_n_mps: float, v_e_mps: float, ref_n_m: float, ref_e_m: float,
+                        l1_m: float) -> tuple[float, float]:
+    """Scalar form of l1_lateral_accel: (a_cmd m/s^2 right positive, eta rad)."""
+    los_n, los_e = ref_n_m - p_n_m, ref_e_m - p_e_m
+    # Signed angle from v to los in the NE plane: right (clockwise from above) positive.
+    cross = v_n_mps * los_e - v_e_mps * los_n
+    dot = v_n_mps * los_n + v_e_mps * los_e
+    eta = max(-HALF_PI, min(HALF_PI, math.atan2(cross, dot)))
+    v = math.hypot(v_n_mps, v_e_mps)
+    return 2.0 * v * v * math.sin(eta) / max(l1_m, 1e-3), eta
 
 
 def l1_lateral_accel(pos_ne_m: np.ndarray, vel_ne_mps: np.ndarray, ref_ne_m: np.ndarray, l1_m: float) -> tuple[float, float]:
@@ -41,14 +55,8 @@ def l1_lateral_accel(pos_ne_m: np.ndarray, vel_ne_mps: np.ndarray, ref_ne_m: np.
     a_cmd = 2 V^2 sin(eta) / L1 with V the ground speed and eta the angle from the velocity to
     the line of sight (clipped to +-90 deg, as in PX4, so that a point behind does not flip).
     """
-    v = float(np.hypot(vel_ne_mps[0], vel_ne_mps[1]))
-    los = ref_ne_m - pos_ne_m
-    # Signed angle from v to los in the NE plane: right (clockwise from above) positive.
-    cross = vel_ne_mps[0] * los[1] - vel_ne_mps[1] * los[0]
-    dot = vel_ne_mps[0] * los[0] + vel_ne_mps[1] * los[1]
-    eta = math.atan2(cross, dot)
-    eta = max(-0.5 * math.pi, min(0.5 * math.pi, eta))
-    return 2.0 * v * v * math.sin(eta) / max(l1_m, 1e-3), eta
+    return l1_lateral_accel_ne(float(pos_ne_m[0]), float(pos_ne_m[1]), float(vel_ne_mps[0]), float(vel_ne_mps[1]),
+                               float(ref_ne_m[0]), float(ref_ne_m[1]), l1_m)
 
 
 @dataclass(frozen=True)
@@ -81,21 +89,28 @@ class PathFollower:
         self.max_bank_rad = max_bank_rad
         self.min_speed_mps = min_speed_mps
         self.index: int | None = None
+        # Per segment: the following one (None at the end of an open path) and, for lines,
+        # the normal of the plane that ends it (fixed geometry, computed once).
+        n = len(segments)
+        self._next_index = [i + 1 if i + 1 < n else (0 if closed else None) for i in range(n)]
+        self._switch_normal_ne = [
+            switching_normal_ne(seg, None if j is None else segments[j]) if not isinstance(seg, ArcSegment) else None
+            for seg, j in zip(segments, self._next_index)
+        ]
 
     def _next(self, i: int) -> int | None:
-        if i + 1 < len(self.segments):
-            return i + 1
-        return 0 if self.closed else None
+        return self._next_index[i]
 
-    def _initial_index(self, p: np.ndarray, v: np.ndarray) -> int:
+    def _initial_index(self, p_n: float, p_e: float, v_n: float, v_e: float) -> int:
         """The nearest segment, ties broken by heading agreement (a 100 m penalty for flying
         against the segment's direction)."""
         best, best_cost = 0, math.inf
-        vh = v / max(float(np.hypot(*v)), 1e-6)
+        v_norm = max(math.hypot(v_n, v_e), 1e-6)
+        h_n, h_e = v_n / v_norm, v_e / v_norm
         for i, seg in enumerate(self.segments):
-            q = seg.closest_point(p)
-            tangent = seg.tangent if isinstance(seg, LineSegment) else _arc_tangent(seg, q)
-            cost = seg.distance_m(p) + 50.0 * (1.0 - float(vh @ tangent))
+            q_n, q_e = seg.closest_point_ne(p_n, p_e)
+            t_n, t_e = seg.tangent_at_ne(p_n, p_e)
+            cost = math.hypot(p_n - q_n, p_e - q_e) + 50.0 * (1.0 - (h_n * t_n + h_e * t_e))
             if cost < best_cost:
                 best, best_cost = i, cost
         return best
@@ -108,76 +123,82 @@ class PathFollower:
         turn (turn_rate_rps, right +): this cancels the lag of the roll loop, so the bank
         command leads the path's curvature changes by about the roll response time instead
         of trailing them. The reported cross-track is that of the present position.
+        pos_ne_m, vel_ne_mps: (2,) or longer (only north and east are used).
         """
-        p_now = np.asarray(pos_ne_m, float)[:2]
-        p, v = predict_on_turn(p_now, np.asarray(vel_ne_mps, float)[:2], turn_rate_rps, lead_s)
+        return self.update_ne(float(pos_ne_m[0]), float(pos_ne_m[1]), float(vel_ne_mps[0]), float(vel_ne_mps[1]),
+                              lead_s=lead_s, turn_rate_rps=turn_rate_rps)
+
+    def update_ne(self, p_n_m: float, p_e_m: float, v_n_mps: float, v_e_mps: float, *, lead_s: float = 0.0,
+                  turn_rate_rps: float = 0.0) -> L1Output:
+        """update() with the position (m) and ground velocity (m/s) as north and east floats."""
+        p_n, p_e, v_n, v_e = predict_on_turn_ne(p_n_m, p_e_m, v_n_mps, v_e_mps, turn_rate_rps, lead_s)
         if self.index is None:
-            self.index = self._initial_index(p, v)
+            self.index = self._initial_index(p_n, p_e, v_n, v_e)
         # Switch (possibly several times after a long gap) while the vehicle is past the end.
         for _ in range(len(self.segments)):
-            nxt = self._next(self.index)
-            if nxt is None or not passed_end(self.segments[self.index], self.segments[nxt], p):
+            nxt = self._next_index[self.index]
+            if nxt is None or not passed_end_ne(self.segments[self.index], p_n, p_e, self._switch_normal_ne[self.index]):
                 break
             self.index = nxt
         seg = self.segments[self.index]
-        nxt = self._next(self.index)
-        speed = max(float(np.hypot(*v)), self.min_speed_mps)
+        nxt = self._next_index[self.index]
+        ground_speed = math.hypot(v_n, v_e)
+        speed = max(ground_speed, self.min_speed_mps)
         l1 = l1_distance_m(speed, self.period_s, self.damping)
         if isinstance(seg, ArcSegment):
             # The L1 circle must cut the path circle (L1 < 2 R); on tight orbits shorten L1
             # (on the circle the command stays V^2 / R exactly, only the gain off it rises).
             l1 = min(l1, 1.5 * seg.radius_m)
-        _, cross = seg.locate(p_now)
-        ref = self._reference_point(seg, None if nxt is None else self.segments[nxt], p, l1)
-        if float(np.hypot(*v)) < self.min_speed_mps:  # too slow for a direction: fly the path tangent
-            v = speed * _tangent_at(seg, p)
-        accel, eta = l1_lateral_accel(p, v, ref, l1)
+        _, cross = seg.locate_ne(p_n_m, p_e_m)
+        ref_n, ref_e = self._reference_point_ne(seg, None if nxt is None else self.segments[nxt], p_n, p_e, l1)
+        if ground_speed < self.min_speed_mps:  # too slow for a direction: fly the path tangent
+            t_n, t_e = seg.tangent_at_ne(p_n, p_e)
+            v_n, v_e = speed * t_n, speed * t_e
+        accel, eta = l1_lateral_accel_ne(p_n, p_e, v_n, v_e, ref_n, ref_e, l1)
         bank = math.atan2(accel, STANDARD_GRAVITY_MPS2)
         bank = max(-self.max_bank_rad, min(self.max_bank_rad, bank))
-        return L1Output(self.index, accel, bank, cross, ref, eta)
+        return L1Output(self.index, accel, bank, cross, np.array((ref_n, ref_e)), eta)
 
     @staticmethod
-    def _reference_point(seg: Segment, nxt: Segment | None, p: np.ndarray, l1: float) -> np.ndarray:
-        hit = seg.l1_point(p, l1)
+    def _reference_point_ne(seg: Segment, nxt: Segment | None, p_n: float, p_e: float, l1: float) -> tuple[float, float]:
+        hit = seg.l1_point_ne(p_n, p_e, l1)
         if hit is not None:
-            point, progress = hit
-            if progress <= seg.length_m or nxt is None:
-                return point
-            hit_next = nxt.l1_point(p, l1)
-            if hit_next is not None and hit_next[1] >= 0.0:
-                return hit_next[0]
-            return point
+            if hit[2] <= seg.length_m or nxt is None:
+                return hit[0], hit[1]
+            hit_next = nxt.l1_point_ne(p_n, p_e, l1)
+            if hit_next is not None and hit_next[2] >= 0.0:
+                return hit_next[0], hit_next[1]
+            return hit[0], hit[1]
         # Farther than L1 from the path: head for the closest point (eta up to 90 deg).
-        q = seg.closest_point(p)
+        q_n, q_e = seg.closest_point_ne(p_n, p_e)
         if isinstance(seg, ArcSegment):
-            return q
+            return q_n, q_e
         # On a line aim at the foot of the perpendicular a little ahead, so eta < 90 deg.
-        return q + 0.1 * l1 * seg.tangent
+        t_n, t_e = seg.tangent_ne
+        return q_n + 0.1 * l1 * t_n, q_e + 0.1 * l1 * t_e
+
+
+def predict_on_turn_ne(p_n: float, p_e: float, v_n: float, v_e: float, turn_rate_rps: float,
+                       dt_s: float) -> tuple[float, float, float, float]:
+    """Scalar form of predict_on_turn: (p_n, p_e, v_n, v_e) after dt_s (m, m/s)."""
+    if dt_s <= 0.0:
+        return p_n, p_e, v_n, v_e
+    a = turn_rate_rps * dt_s
+    c, s = math.cos(a), math.sin(a)
+    if abs(turn_rate_rps) < 1e-6:
+        d_n, d_e = v_n * dt_s, v_e * dt_s
+    else:
+        # Integral of rot(w t) v over [0, dt]: (1/w) [[s, c - 1], [1 - c, s]] v.
+        d_n = (s * v_n + (c - 1.0) * v_e) / turn_rate_rps
+        d_e = ((1.0 - c) * v_n + s * v_e) / turn_rate_rps
+    # Rotating a NE vector clockwise (right turn) by a: (n, e) -> (n c - e s, n s + e c).
+    return p_n + d_n, p_e + d_e, c * v_n - s * v_e, s * v_n + c * v_e
 
 
 def predict_on_turn(p_ne: np.ndarray, v_ne: np.ndarray, turn_rate_rps: float, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
     """Position and velocity after dt_s on a constant-speed turn at turn_rate_rps (right +)."""
     if dt_s <= 0.0:
         return p_ne, v_ne
-    a = turn_rate_rps * dt_s
-    c, s = math.cos(a), math.sin(a)
-    # Rotating a NE vector clockwise (right turn) by a: (n, e) -> (n c - e s, n s + e c).
-    rot = np.array([[c, -s], [s, c]])
-    if abs(turn_rate_rps) < 1e-6:
-        disp = v_ne * dt_s
-    else:
-        # Integral of rot(w t) v over [0, dt]: (1/w) [[s, c - 1], [1 - c, s]] v.
-        disp = np.array([[s, c - 1.0], [1.0 - c, s]]) @ v_ne / turn_rate_rps
-    return p_ne + disp, rot @ v_ne
-
-
-def _arc_tangent(seg: ArcSegment, q: np.ndarray) -> np.ndarray:
-    d = q - seg.center_ne_m
-    ang = math.atan2(d[1], d[0])
-    return seg.direction * np.array([-math.sin(ang), math.cos(ang)])
-
-
-def _tangent_at(seg: Segment, p: np.ndarray) -> np.ndarray:
-    if isinstance(seg, LineSegment):
-        return seg.tangent
-    return _arc_tangent(seg, seg.closest_point(p))
+    p_n, p_e, v_n, v_e = predict_on_turn_ne(float(p_ne[0]), float(p_ne[1]), float(v_ne[0]), float(v_ne[1]),
+                                            turn_rate_rps, dt_s)
+    return np.array((p_n, p_e)), np.array((v_n, v_e))
