@@ -20,6 +20,7 @@ Gains: gains.py / design.py (pole placement and LQR on the linear models).
 from __future__ import annotations
 
 import math
+from operator import mul
 
 import numpy as np
 import pydantic
@@ -33,10 +34,21 @@ from testbench.core.registry import ParamsModel, register
 from testbench.core.units import DEG_TO_RAD, STANDARD_GRAVITY_MPS2
 
 G = STANDARD_GRAVITY_MPS2
+NAN2 = (float("nan"), float("nan"))
 
 
 def _clip(x: float, lo: float, hi: float) -> float:
     return lo if x < lo else hi if x > hi else x
+
+
+def _dot(a, b) -> float:
+    """Dot product of two equal-length float sequences (no numpy: these are 7-vectors)."""
+    return sum(map(mul, a, b))
+
+
+def _floats(v) -> list[float]:
+    """A short vector (ndarray or sequence) as a list of Python floats."""
+    return v.tolist() if isinstance(v, np.ndarray) else [float(x) for x in v]
 
 
 @register("controller", "fixed_wing")
@@ -83,6 +95,15 @@ class FixedWingController(Controller):
             damping=params.l1_damping, max_bank_rad=self.max_bank_rad,
         )
         self._k_lon = gains.k_lon_array
+        # The loops read plain floats each tick (pydantic/dataclass attribute access and numpy
+        # on 7-vectors would cost more than the arithmetic).
+        self._k_elevator, self._k_throttle = (tuple(float(k) for k in row) for row in gains.k_lon)
+        self._roll_lead_s = float(params.roll_lead_s)
+        self._max_climb_rate_mps = float(params.max_climb_rate_mps)
+        self._alt_error_clip_m = float(params.altitude_error_clip_m)
+        self._alt_cmd_by_segment = [self._alt_cmd(i) for i in range(len(self.segments))]
+        # GuidanceStatus fields that are fixed per segment: on_leg and the leg's end points.
+        self._leg_geometry = [self._segment_leg_geometry(seg) for seg in self.segments]
         self._t_prev: float | None = None
         self._h_ref: float | None = None
         self._int_v = 0.0
@@ -96,28 +117,34 @@ class FixedWingController(Controller):
         seg_alt = getattr(self.mission, "segment_altitude_m", None)
         return float(seg_alt(seg_index)) if seg_alt is not None and len(self.mission.waypoints_ned_m) else float(self.mission.altitude_m)
 
+    @staticmethod
+    def _segment_leg_geometry(seg) -> tuple[bool, tuple[float, float], tuple[float, float]]:
+        """(on_leg, line_start_ne_m, line_end_ne_m) as GuidanceStatus reports them."""
+        on_leg = isinstance(seg, LineSegment) and seg.is_leg
+        if not on_leg:
+            return False, NAN2, NAN2
+        return True, tuple(float(c) for c in seg.start_ne_m), tuple(float(c) for c in seg.end_ne_m)
+
     def update(self, t_s: float, estimate: NavEstimate, reference=None) -> SurfaceCommand:
         """Surface/throttle command from the estimate (reference unused)."""
-        pos, vel = estimate.pos_ned_m, estimate.vel_ned_mps
+        p_n, p_e, _ = _floats(estimate.pos_ned_m)
+        v_n, v_e, v_d = _floats(estimate.vel_ned_mps)
         phi = float(estimate.rpy_rad[0])
-        ground_speed = float(np.linalg.norm(vel))
+        ground_speed = math.sqrt(v_n * v_n + v_e * v_e + v_d * v_d)
         turn_rate = G * math.tan(_clip(phi, -1.2, 1.2)) / max(ground_speed, 5.0)
-        out = self.follower.update(pos[:2], vel[:2], lead_s=self.params.roll_lead_s, turn_rate_rps=turn_rate)
-        h_cmd = self._alt_cmd(out.segment_index)
+        out = self.follower.update_ne(p_n, p_e, v_n, v_e, lead_s=self._roll_lead_s, turn_rate_rps=turn_rate)
+        h_cmd = self._alt_cmd_by_segment[out.segment_index]
         cmd = self.autopilot(t_s, estimate, out.bank_cmd_rad, h_cmd, self.airspeed_cmd_mps)
-        phi_c = out.bank_cmd_rad
-        seg = self.segments[out.segment_index]
-        on_leg = isinstance(seg, LineSegment) and seg.is_leg
-        nan2 = (float("nan"), float("nan"))
+        on_leg, line_start, line_end = self._leg_geometry[out.segment_index]
         self._status = GuidanceStatus(
             t_s=t_s,
             leg_index=out.segment_index,
             on_leg=on_leg,
             alt_cmd_m=h_cmd,
             airspeed_cmd_mps=self.airspeed_cmd_mps,
-            line_start_ne_m=tuple(float(c) for c in seg.start_ne_m) if on_leg else nan2,
-            line_end_ne_m=tuple(float(c) for c in seg.end_ne_m) if on_leg else nan2,
-            bank_cmd_rad=phi_c,
+            line_start_ne_m=line_start,
+            line_end_ne_m=line_end,
+            bank_cmd_rad=out.bank_cmd_rad,
             cross_track_est_m=out.cross_track_m,
         )
         return cmd
@@ -127,36 +154,38 @@ class FixedWingController(Controller):
         g = self.gains
         dt = 0.0 if self._t_prev is None else max(0.0, t_s - self._t_prev)
         self._t_prev = t_s
-        pos, vel = estimate.pos_ned_m, estimate.vel_ned_mps
-        phi, theta, _ = (float(a) for a in estimate.rpy_rad)
-        p, q, r = (float(w) for w in estimate.omega_b_rps)
-        ground_speed = float(np.linalg.norm(vel))
+        v_n, v_e, v_d = _floats(estimate.vel_ned_mps)
+        phi, theta, _ = _floats(estimate.rpy_rad)
+        p, q, r = _floats(estimate.omega_b_rps)
+        ground_speed = math.sqrt(v_n * v_n + v_e * v_e + v_d * v_d)
         v_air = float(estimate.airspeed_mps) if estimate.airspeed_mps is not None else ground_speed
         v_for_rates = max(v_air, 5.0)
-        gamma = math.asin(_clip(-float(vel[2]) / max(ground_speed, 1e-3), -1.0, 1.0))
-        h = -float(pos[2])
+        gamma = math.asin(_clip(-v_d / max(ground_speed, 1e-3), -1.0, 1.0))
+        h = -float(estimate.pos_ned_m[2])
 
         # Altitude reference: rate-limited towards the command.
         if self._h_ref is None:
             self._h_ref = h
-        step = self.params.max_climb_rate_mps * dt
+        step = self._max_climb_rate_mps * dt
         dh = _clip(h_cmd - self._h_ref, -step, step)
         self._h_ref += dh
         gamma_r = math.asin(_clip(dh / dt / v_for_rates, -0.5, 0.5)) if dt > 0 else 0.0
 
-        # Longitudinal LQI.
-        q_r = G * math.sin(phi) * math.tan(_clip(phi, -1.2, 1.2)) / v_for_rates
+        # Longitudinal LQI: u = u_trim - K_lon x.
+        sin_phi = math.sin(phi)
+        q_r = G * sin_phi * math.tan(_clip(phi, -1.2, 1.2)) / v_for_rates
         e_v = v_air - v_cmd
-        e_h = _clip(h - self._h_ref, -self.params.altitude_error_clip_m, self.params.altitude_error_clip_m)
-        x = np.array([e_v, gamma - gamma_r, q - q_r, theta - g.trim_theta_rad, e_h, self._int_v, self._int_h])
-        u = np.array([g.trim_elevator, g.trim_throttle]) - self._k_lon @ x
-        elevator = _clip(float(u[0]), -1.0, 1.0)
-        throttle = _clip(float(u[1]), 0.0, 1.0)
+        e_h = _clip(h - self._h_ref, -self._alt_error_clip_m, self._alt_error_clip_m)
+        x = (e_v, gamma - gamma_r, q - q_r, theta - g.trim_theta_rad, e_h, self._int_v, self._int_h)
+        elevator_u = g.trim_elevator - _dot(self._k_elevator, x)
+        throttle_u = g.trim_throttle - _dot(self._k_throttle, x)
+        elevator = _clip(elevator_u, -1.0, 1.0)
+        throttle = _clip(throttle_u, 0.0, 1.0)
         # Integrate unless the actuator the integral mostly drives is saturated in that direction
         # (conditional integration anti-windup).
-        if throttle == float(u[1]):
+        if throttle == throttle_u:
             self._int_v = _clip(self._int_v + e_v * dt, -50.0, 50.0)
-        if elevator == float(u[0]):
+        if elevator == elevator_u:
             self._int_h = _clip(self._int_h + e_h * dt, -200.0, 200.0)
 
         # Roll loop and yaw damper.
@@ -165,7 +194,7 @@ class FixedWingController(Controller):
         aileron = _clip(aileron_u, -1.0, 1.0)
         if aileron == aileron_u:
             self._int_phi = _clip(self._int_phi + e_phi * dt, -0.5, 0.5)
-        r_c = G * math.sin(phi) * math.cos(theta) / v_for_rates
+        r_c = G * sin_phi * math.cos(theta) / v_for_rates
         rudder = _clip(g.trim_rudder - g.k_r * (r - r_c), -1.0, 1.0)
         return SurfaceCommand(aileron=aileron, elevator=elevator, rudder=rudder, throttle=throttle)
 
