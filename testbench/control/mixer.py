@@ -33,6 +33,9 @@ class Mixer:
         self.max_thrust_n = float(max_thrust_n)
         self.effectiveness = np.vstack([np.ones(self.n), -pos[:, 1], pos[:, 0], -spin * yaw_torque_per_thrust_m])
         self.allocation = np.linalg.pinv(self.effectiveness)
+        # Rows of the allocation matrix as float tuples: allocation runs every control tick on
+        # 4-vectors, where numpy's per-call overhead dwarfs the arithmetic.
+        self._allocation_rows = [tuple(float(a) for a in row) for row in self.allocation]
 
     def wrench(self, thrusts_n: np.ndarray) -> np.ndarray:
         """Forward map: motor thrusts (n,) N -> (T, L, M, N)."""
@@ -40,26 +43,39 @@ class Mixer:
 
     def allocate(self, thrust_n: float, moments_b_nm: np.ndarray) -> np.ndarray:
         """Motor thrusts (n,) N within [0, T_max] for the wanted thrust and moments (3,)."""
-        base = self.allocation[:, 0] * thrust_n
-        rp = self.allocation[:, 1:3] @ np.asarray(moments_b_nm[:2], float)
-        yaw = self.allocation[:, 3] * float(moments_b_nm[2])
-        t = base + rp + yaw
-        if np.all(t >= 0.0) and np.all(t <= self.max_thrust_n):
+        return np.array(self.allocate_floats(thrust_n, moments_b_nm))
+
+    def allocate_floats(self, thrust_n: float, moments_b_nm) -> list[float]:
+        """allocate() as a list of floats; moments_b_nm: (L, M, N) N m, any sequence."""
+        l_nm, m_nm, n_nm = (float(x) for x in moments_b_nm[:3])
+        hi = self.max_thrust_n
+        rows = self._allocation_rows
+        base = [row[0] * thrust_n for row in rows]
+        rp = [row[1] * l_nm + row[2] * m_nm for row in rows]
+        yaw = [row[3] * n_nm for row in rows]
+        base_rp = [b + r for b, r in zip(base, rp)]
+        t = [b + y for b, y in zip(base_rp, yaw)]
+        if all(0.0 <= x <= hi for x in t):
             return t
         # Scale the yaw part, then the roll/pitch part, into the feasible box.
-        k_yaw = _max_scale(base + rp, yaw, self.max_thrust_n)
-        t = base + rp + k_yaw * yaw
-        if np.all(t >= -1e-9) and np.all(t <= self.max_thrust_n + 1e-9):
-            return np.clip(t, 0.0, self.max_thrust_n)
-        k_rp = _max_scale(base, rp, self.max_thrust_n)
-        return np.clip(base + k_rp * rp, 0.0, self.max_thrust_n)
+        k_yaw = _max_scale(base_rp, yaw, hi)
+        t = [b + k_yaw * y for b, y in zip(base_rp, yaw)]
+        if all(-1e-9 <= x <= hi + 1e-9 for x in t):
+            return [_clip(x, 0.0, hi) for x in t]
+        k_rp = _max_scale(base, rp, hi)
+        return [_clip(b + k_rp * r, 0.0, hi) for b, r in zip(base, rp)]
 
-    def commands(self, thrust_n: float, moments_b_nm: np.ndarray) -> tuple[float, ...]:
+    def commands(self, thrust_n: float, moments_b_nm) -> tuple[float, ...]:
         """Normalised motor commands in [0, 1] (thrust / T_max)."""
-        return tuple(float(v) for v in self.allocate(thrust_n, moments_b_nm) / self.max_thrust_n)
+        hi = self.max_thrust_n
+        return tuple(t / hi for t in self.allocate_floats(thrust_n, moments_b_nm))
 
 
-def _max_scale(base: np.ndarray, part: np.ndarray, hi: float) -> float:
+def _clip(x: float, lo: float, hi: float) -> float:
+    return lo if x < lo else hi if x > hi else x
+
+
+def _max_scale(base, part, hi: float) -> float:
     """Largest k in [0, 1] with 0 <= base + k part <= hi element-wise (base assumed inside)."""
     k = 1.0
     for b, p in zip(base, part):

@@ -30,10 +30,50 @@ from testbench.control.mixer import Mixer
 from testbench.core.interfaces import BuildContext, Controller
 from testbench.core.messages import GuidanceStatus, NavEstimate, RotorCommand
 from testbench.core.registry import ParamsModel, register
-from testbench.core.rotations import dcm_to_euler, euler_to_dcm, wrap_pi
 from testbench.core.units import DEG_TO_RAD, STANDARD_GRAVITY_MPS2
 
 G = STANDARD_GRAVITY_MPS2
+TWO_PI = 2.0 * math.pi
+
+# The loops below run on plain floats and tuples: numpy's per-call overhead on 3-vectors
+# (np.cross, np.linalg.norm, small products) is tens of times the arithmetic itself.
+
+
+def _floats(v) -> list[float]:
+    """A short vector (ndarray or sequence) as a list of Python floats."""
+    return v.tolist() if isinstance(v, np.ndarray) else [float(x) for x in v]
+
+
+def _wrap_pi(angle_rad: float) -> float:
+    """Angle wrapped into [-pi, pi) (scalar core.rotations.wrap_pi)."""
+    return (angle_rad + math.pi) % TWO_PI - math.pi
+
+
+def _cross(a: tuple[float, float, float], b: tuple[float, float, float]) -> tuple[float, float, float]:
+    return a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]
+
+
+def _normalized(v: tuple[float, float, float]) -> tuple[float, float, float]:
+    n = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    return v[0] / n, v[1] / n, v[2] / n
+
+
+def _body_z_axis_ned(roll_rad: float, pitch_rad: float, yaw_rad: float) -> tuple[float, float, float]:
+    """Third column of R_nb (Z-Y-X Euler, as core.rotations.euler_to_dcm): body z in NED."""
+    cr, sr = math.cos(roll_rad), math.sin(roll_rad)
+    cp, sp = math.cos(pitch_rad), math.sin(pitch_rad)
+    cy, sy = math.cos(yaw_rad), math.sin(yaw_rad)
+    return cr * sp * cy + sr * sy, cr * sp * sy - sr * cy, cr * cp
+
+
+def _euler_from_body_axes(x_b: tuple[float, float, float], y_b: tuple[float, float, float],
+                          z_b: tuple[float, float, float]) -> tuple[float, float, float]:
+    """Z-Y-X Euler angles (roll, pitch, yaw) of R_nb = [x_b y_b z_b] (body axes in NED as
+    columns), as core.rotations.dcm_to_euler."""
+    roll = math.atan2(y_b[2], z_b[2])
+    pitch = -math.asin(max(-1.0, min(1.0, x_b[2])))
+    yaw = math.atan2(x_b[1], x_b[0])
+    return roll, pitch, yaw
 
 
 @dataclass(frozen=True)
@@ -102,23 +142,32 @@ class MultirotorController(Controller):
         self._reached = False
         self._prev_pt: np.ndarray | None = None
         self._yaw_sp: float | None = None
-        self._int_v = np.zeros(3)
+        self._int_v = (0.0, 0.0, 0.0)
         self._t_prev: float | None = None
         self._status = GuidanceStatus(t_s=0.0)
+        # Plain-float copies of what the loops read every tick.
+        self._waypoints_ned = [tuple(float(c) for c in w) for w in wps]
+        self._inertia_diag = tuple(float(j) for j in np.diag(self.inertia))
+        self._corner_speed_mps = float(params.corner_speed_mps)
+        self._brake_accel_mps2 = float(params.brake_accel_mps2)
+        self._max_climb_rate_mps = float(params.max_climb_rate_mps)
+        self._accel_h_max_mps2 = G * math.tan(self.max_tilt)  # tilt limit on horizontal acceleration
 
     # -- guidance ------------------------------------------------------------------------
 
-    def _velocity_command(self, pos: np.ndarray) -> np.ndarray:
-        target = self.waypoints[self.index]
-        d = target - pos
-        dist = float(np.linalg.norm(d))
-        last = self.index == len(self.waypoints) - 1 and not self.loop
+    def _velocity_command(self, pos) -> tuple[float, float, float]:
+        """Velocity command (3,) NED m/s towards the active waypoint from the position pos
+        ((3,) NED m); subclasses override it to fly other guidance through the cascade."""
+        target = self._waypoints_ned[self.index]
+        d = (target[0] - pos[0], target[1] - pos[1], target[2] - pos[2])
+        dist = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+        last = self.index == len(self._waypoints_ned) - 1 and not self.loop
         if self._reached and not last:
             # Switch one tick after arrival, so the tick inside the acceptance radius is
             # reported (GuidanceStatus) with the waypoint it reached.
             self._reached = False
-            self._prev_pt = target.copy()
-            self.index = (self.index + 1) % len(self.waypoints)
+            self._prev_pt = target
+            self.index = (self.index + 1) % len(self._waypoints_ned)
             return self._velocity_command(pos)
         if not self.holding and dist < self.acceptance_m:
             if last:
@@ -126,17 +175,21 @@ class MultirotorController(Controller):
             else:
                 self._reached = True
         if self.holding or (last and dist < 3.0 * self.acceptance_m):
-            v = self.gains.k_pos * d
+            k = self.gains.k_pos
+            v = (k * d[0], k * d[1], k * d[2])
         else:
-            v_end = 0.0 if last else self.params.corner_speed_mps
-            speed = min(self.max_speed, math.sqrt(v_end**2 + 2.0 * self.params.brake_accel_mps2 * dist))
-            v = speed * d / max(dist, 1e-6)
+            v_end = 0.0 if last else self._corner_speed_mps
+            speed = min(self.max_speed, math.sqrt(v_end**2 + 2.0 * self._brake_accel_mps2 * dist))
+            scale = max(dist, 1e-6)
+            v = (speed * d[0] / scale, speed * d[1] / scale, speed * d[2] / scale)
         # Respect the climb-rate limit by scaling the whole vector (keeps the straight line).
-        if abs(v[2]) > self.params.max_climb_rate_mps:
-            v = v * (self.params.max_climb_rate_mps / abs(v[2]))
-        h = float(np.hypot(v[0], v[1]))
+        if abs(v[2]) > self._max_climb_rate_mps:
+            k = self._max_climb_rate_mps / abs(v[2])
+            v = (v[0] * k, v[1] * k, v[2] * k)
+        h = math.hypot(v[0], v[1])
         if h > self.max_speed:
-            v = v * (self.max_speed / h)
+            k = self.max_speed / h
+            v = (v[0] * k, v[1] * k, v[2] * k)
         return v
 
     # -- control -------------------------------------------------------------------------
@@ -145,51 +198,57 @@ class MultirotorController(Controller):
         g = self.gains
         dt = 0.0 if self._t_prev is None else max(0.0, t_s - self._t_prev)
         self._t_prev = t_s
-        pos, vel = np.asarray(estimate.pos_ned_m, float), np.asarray(estimate.vel_ned_mps, float)
-        rpy = np.asarray(estimate.rpy_rad, float)
-        omega = np.asarray(estimate.omega_b_rps, float)
+        pos = _floats(estimate.pos_ned_m)
+        vel = _floats(estimate.vel_ned_mps)
+        roll, pitch, yaw = _floats(estimate.rpy_rad)
+        omega = _floats(estimate.omega_b_rps)
         if self._prev_pt is None:
-            self._prev_pt = pos.copy()
-            self._yaw_sp = float(rpy[2])
+            self._prev_pt = tuple(pos)
+            self._yaw_sp = yaw
 
+        # Velocity loop (PI) -> acceleration command, NED m/s^2.
         v_cmd = self._velocity_command(pos)
-        e_v = v_cmd - vel
-        a_cmd = g.k_vel * e_v + g.k_vel_i * self._int_v
+        e_v = [float(v_cmd[i]) - vel[i] for i in range(3)]
+        a_cmd = [g.k_vel * e_v[i] + g.k_vel_i * self._int_v[i] for i in range(3)]
         # Tilt limit: horizontal acceleration at most g tan(max_tilt) (vertical has priority).
-        a_h_max = G * math.tan(self.max_tilt)
-        a_h = float(np.hypot(a_cmd[0], a_cmd[1]))
-        saturated = a_h > a_h_max
-        if saturated:
-            a_cmd[:2] *= a_h_max / a_h
-        if not saturated:
-            self._int_v = np.clip(self._int_v + e_v * dt, -3.0, 3.0)
+        a_h = math.hypot(a_cmd[0], a_cmd[1])
+        if a_h > self._accel_h_max_mps2:
+            k = self._accel_h_max_mps2 / a_h
+            a_cmd[0] *= k
+            a_cmd[1] *= k
+        else:
+            self._int_v = tuple(min(max(self._int_v[i] + e_v[i] * dt, -3.0), 3.0) for i in range(3))
+
         # Thrust vector: m (a - g) in NED; the body -z axis must point along it.
-        f = self.mass_kg * (a_cmd - np.array([0.0, 0.0, G]))
-        f[2] = min(f[2], -0.2 * self.mass_kg * G)  # always some upward thrust
-        z_b = -f / np.linalg.norm(f)
-        x_c = np.array([math.cos(self._yaw_sp), math.sin(self._yaw_sp), 0.0])
-        y_b = np.cross(z_b, x_c)
-        y_b /= np.linalg.norm(y_b)
-        x_b = np.cross(y_b, z_b)
-        rpy_d = dcm_to_euler(np.column_stack([x_b, y_b, z_b]))
-        R_nb = euler_to_dcm(rpy)
-        thrust = float(-f @ R_nb[:, 2])  # project on the actual thrust axis
-        thrust = max(thrust, 0.0)
+        m = self.mass_kg
+        f = (m * a_cmd[0], m * a_cmd[1], min(m * (a_cmd[2] - G), -0.2 * m * G))  # always some upward thrust
+        z_b = _normalized((-f[0], -f[1], -f[2]))
+        x_c = (math.cos(self._yaw_sp), math.sin(self._yaw_sp), 0.0)
+        y_b = _normalized(_cross(z_b, x_c))
+        x_b = _cross(y_b, z_b)
+        rpy_d = _euler_from_body_axes(x_b, y_b, z_b)
+        z_n = _body_z_axis_ned(roll, pitch, yaw)
+        thrust = max(-(f[0] * z_n[0] + f[1] * z_n[1] + f[2] * z_n[2]), 0.0)  # on the actual thrust axis
 
         # Attitude -> body rates (small-angle Euler error, adequate below ~35 deg tilt).
-        e_att = np.array([wrap_pi(rpy_d[0] - rpy[0]), wrap_pi(rpy_d[1] - rpy[1]), wrap_pi(self._yaw_sp - rpy[2])])
-        w_cmd = np.array([g.k_att * e_att[0], g.k_att * e_att[1], g.k_att_yaw * e_att[2]])
-        moments = self.inertia @ (g.k_rate * (w_cmd - omega)) + np.cross(omega, self.inertia @ omega)
+        w_cmd = (g.k_att * _wrap_pi(rpy_d[0] - roll), g.k_att * _wrap_pi(rpy_d[1] - pitch),
+                 g.k_att_yaw * _wrap_pi(self._yaw_sp - yaw))
+        # Rate loop: M = J k_rate (w_cmd - w) + w x J w (J diagonal).
+        j = self._inertia_diag
+        j_omega = (j[0] * omega[0], j[1] * omega[1], j[2] * omega[2])
+        gyro = _cross(omega, j_omega)
+        moments = tuple(j[i] * (g.k_rate * (w_cmd[i] - omega[i])) + gyro[i] for i in range(3))
         cmd = RotorCommand(motors=self.mixer.commands(thrust, moments))
 
-        target = self.waypoints[self.index]
+        target = self._waypoints_ned[self.index]
+        prev_n, prev_e = float(self._prev_pt[0]), float(self._prev_pt[1])
         self._status = GuidanceStatus(
-            t_s=t_s, leg_index=self.index, on_leg=not self.holding, alt_cmd_m=float(-target[2]),
-            line_start_ne_m=(float(self._prev_pt[0]), float(self._prev_pt[1])),
-            line_end_ne_m=(float(target[0]), float(target[1])),
-            target_ned_m=(float(target[0]), float(target[1]), float(target[2])),
-            bank_cmd_rad=float(rpy_d[0]),
-            cross_track_est_m=_cross_track(pos[:2], self._prev_pt[:2], target[:2]),
+            t_s=t_s, leg_index=self.index, on_leg=not self.holding, alt_cmd_m=-target[2],
+            line_start_ne_m=(prev_n, prev_e),
+            line_end_ne_m=(target[0], target[1]),
+            target_ned_m=target,
+            bank_cmd_rad=rpy_d[0],
+            cross_track_est_m=_cross_track_m(pos[0], pos[1], prev_n, prev_e, target[0], target[1]),
         )
         return cmd
 
@@ -197,14 +256,15 @@ class MultirotorController(Controller):
         return self._status
 
 
-def _cross_track(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
-    d = b - a
-    n = float(np.hypot(d[0], d[1]))
+def _cross_track_m(p_n: float, p_e: float, a_n: float, a_e: float, b_n: float, b_e: float) -> float:
+    """Cross-track (m, right +) of p from the line a -> b; nan when a and b coincide."""
+    d_n, d_e = b_n - a_n, b_e - a_e
+    n = math.hypot(d_n, d_e)
     if n < 1e-6:
         return float("nan")
-    t = d / n
-    e = p - a
-    return float(-e[0] * t[1] + e[1] * t[0])
+    t_n, t_e = d_n / n, d_e / n
+    e_n, e_e = p_n - a_n, p_e - a_e
+    return -e_n * t_e + e_e * t_n
 
 
 def _point_on(seg, frac: float) -> np.ndarray:
