@@ -77,10 +77,16 @@ class RelnavAid(NavigationAid):
     """Relative navigation of one vehicle (see the module docstring).
 
     Params: cameras (sensor names), detector {type, params}, uwb (sensor name or None),
-    uwb_lever_arm_b_m (own antenna; default: the UWB sensor's), led_rate_hz (default: the
+    uwb_lever_arm_b_m (own antenna; default: the UWB sensor's), target_offset_b_m (where the
+    detector's centre lies on a neighbour relative to its CG, its body axes: e.g. the LED
+    centroid; rotated with our own attitude, the neighbour's being unknown), led_rate_hz (default: the
     first camera's rate), range_max_age_s (a range this recent may start a filter with a
     bearing), stale_after_s (a neighbour with no update for this long leaves the table),
-    predicted_association (an undecoded track may feed the neighbour it uniquely matches),
+    predicted_association (an undecoded track may feed the neighbour it uniquely matches, when
+    that neighbour's estimate is settled: sigma below assoc_max_sigma_m), reset_after_rejects
+    (a neighbour whose bearings were rejected this many times in a row, or whose ranges were
+    rejected filter.max_consecutive_rejects times in a row, restarts from the next bearing of a
+    track with a decoded ID and the median of the recent ranges),
     log_rate_hz (rows of table "relnav"), seed (oracle noise when no rng is injected), roi,
     filter, tracker.
     """
@@ -90,10 +96,13 @@ class RelnavAid(NavigationAid):
         detector: DetectorSpec = DetectorSpec()
         uwb: str | None = "uwb"
         uwb_lever_arm_b_m: tuple[float, float, float] | None = None
+        target_offset_b_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
         led_rate_hz: float | None = pydantic.Field(None, gt=0)
         range_max_age_s: float = pydantic.Field(0.5, gt=0)
         stale_after_s: float = pydantic.Field(5.0, gt=0)
         predicted_association: bool = True
+        assoc_max_sigma_m: float = pydantic.Field(1.0, gt=0)
+        reset_after_rejects: int = pydantic.Field(5, ge=1)
         log_rate_hz: float = pydantic.Field(2.0, gt=0)
         seed: int = 0
         roi: RoiParams = RoiParams()
@@ -136,7 +145,8 @@ class RelnavAid(NavigationAid):
         self.last_estimate: NavEstimate | None = None
         self.t_s = 0.0
         self._next_log_t = 0.0
-        self.counters = {"frames": 0, "detections": 0, "id_checks": 0, "id_wrong": 0, "bearings_used": 0, "predicted_assoc": 0}
+        self.counters = {"frames": 0, "detections": 0, "id_checks": 0, "id_wrong": 0, "bearings_used": 0, "predicted_assoc": 0,
+                         "filter_resets": 0}
 
     # -- NavigationAid ---------------------------------------------------------------------
 
@@ -158,7 +168,9 @@ class RelnavAid(NavigationAid):
     def _range(self, m: UwbRange, est: NavEstimate) -> None:
         if m.peer_id == self.self_id or not np.isfinite(m.range_m):
             return
-        self.last_range[m.peer_id] = (float(m.t_s), float(m.range_m))
+        hist = self.last_range.setdefault(m.peer_id, [])
+        hist.append((float(m.t_s), float(m.range_m)))
+        del hist[:-5]
         f = self.filters.get(m.peer_id)
         if f is not None:
             # One installation on every vehicle, peer attitude taken equal to ours: the antenna
@@ -188,7 +200,9 @@ class RelnavAid(NavigationAid):
 
         R_nb = quat_to_dcm(est.q_nb_wxyz)
         R_nc = R_nb @ mount.R_bc
-        c_off = R_nb @ mount.lever_arm_b_m
+        # The bearing points at the detected point p_peer + R_nb o (o: target offset): fuse it as
+        # a bearing to the CG seen from a camera moved by -R_nb o.
+        c_off = R_nb @ (mount.lever_arm_b_m - np.asarray(self.params.target_offset_b_m, float))
         att_sigma = float(np.sqrt(max(np.max(np.linalg.eigvalsh(np.asarray(est.cov_att_rad2, float))), 0.0)))
         focal = 0.5 * (cam.fx + cam.fy)
         diag = RelnavDiagnostics(t)
@@ -214,6 +228,11 @@ class RelnavAid(NavigationAid):
             if tr.id_index is not None:
                 self.id_conf[peer] = tr.id_confidence
             f = self.filters.get(peer)
+            if f is not None and tr.id_index is not None and (
+                    f.consecutive_bearing_rejects >= self.params.reset_after_rejects
+                    or f.consecutive_rejects >= self.fset.max_consecutive_rejects):
+                self.counters["filter_resets"] += 1
+                f = None  # the estimate lost its neighbour: restart from an identified bearing
             if f is None:
                 f = self._start_filter(peer, t, cam, mount, R_nb, det.centre_px, att_sigma)
                 if f is None:
@@ -227,10 +246,14 @@ class RelnavAid(NavigationAid):
         return diag
 
     def _start_filter(self, peer, t, cam, mount, R_nb, centre_px, att_sigma) -> NeighbourFilter | None:
-        rng = self.last_range.get(peer)
-        if rng is None or t - rng[0] > self.params.range_max_age_s:
+        recent = [r for (tr, r) in self.last_range.get(peer, ()) if t - tr <= self.params.range_max_age_s]
+        if not recent:
             return None
-        r0 = relative_from_bearing_range(cam, mount, R_nb, [centre_px], rng[1])
+        # Median of the lower half of the last few ranges: NLOS excesses are positive, so up to
+        # half of them being NLOS cannot seed the filter with a long range.
+        low = np.sort(recent)[: (len(recent) + 1) // 2]
+        r0 = relative_from_bearing_range(cam, mount, R_nb, [centre_px], float(np.median(low)))
+        r0 = r0 - R_nb @ np.asarray(self.params.target_offset_b_m, float)
         ang = np.hypot(self.fset.bearing_sigma_px / (0.5 * (cam.fx + cam.fy)), att_sigma)
         P0 = initial_covariance(r0, self.fset.range_sigma_m, ang)
         f = NeighbourFilter(t, r0, P0, self.fset)
@@ -243,13 +266,16 @@ class RelnavAid(NavigationAid):
         hits = []
         R = np.eye(2) * ((self.fset.bearing_sigma_px / focal) ** 2 + att_sigma**2)
         for peer, f in self.filters.items():
-            if peer in claimed:
+            if peer in claimed or f.counters["bearing_accepted"] < 10:
                 continue
-            dt = t - f.t_s
+            dt = max(t - f.t_s, 0.0)
             x = f.x[:3] + dt * f.x[3:]
-            d = (x - c_off) @ R_nc
-            if d[2] <= 0:
+            P = f.P[:3, :3] + dt * (f.P[:3, 3:] + f.P[3:, :3]) + dt * dt * f.P[3:, 3:]
+            if np.sqrt(max(np.trace(P), 0.0)) > self.params.assoc_max_sigma_m:
                 continue
+            d = (x - c_off) @ R_nc
+            if d[2] <= 0.2 * np.linalg.norm(d):
+                continue  # not in front of this camera
             h, H = f.bearing_model(R_nc, c_off)
             S = H @ f.P @ H.T + R
             y = m_xy - np.array([d[0] / d[2], d[1] / d[2]])

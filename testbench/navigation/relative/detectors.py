@@ -25,24 +25,31 @@ class LedDetector(Detector):
     1. LED mask: HSV value >= v_min and saturation >= s_min (and hue within hue_ranges_deg
        when given): lit LEDs are drawn near-white cores in a saturated glow, brighter than sky
        (value <= ~200 at gain 1) and most ground.
-    2. 8-connected components of the mask, kept if area <= max_blob_area_px.
+    2. 8-connected components of the mask, kept if area <= max_blob_area_px and brighter by
+       min_contrast (value) than the median of a ring around them (bright haze and sky are
+       smooth: no contrast).
     3. Blobs closer than group_px join one vehicle (union-find on centroids).
     4. Per group: brightness-weighted LED centroid (the vehicle's centre), led_level = sum of
        value/255 over the group's LED pixels (rises with the number of lit LEDs: the blink
-       decoder thresholds it), box = LED bbox grown into the dark body pixels around it
+       decoder thresholds it) or, with data_hue_deg (anchor LED of another colour than the
+       data LEDs, the recommended layout), 0.05 + the sum over the pixels of the data LEDs' hue
+       only, which stays clear of zero/non-zero even when LEDs overlap at long range; box = LED bbox grown into the dark body pixels around it
        (grey < body_grey_max connected to the LEDs within body_search_px), else LED bbox
        + box_pad_px.
     """
 
     class Params(ParamsModel):
-        v_min: int = pydantic.Field(215, ge=0, le=255)
-        s_min: int = pydantic.Field(60, ge=0, le=255)
+        v_min: int = pydantic.Field(225, ge=0, le=255)
+        s_min: int = pydantic.Field(90, ge=0, le=255)
+        min_contrast: int = pydantic.Field(15, ge=0, le=255)
         hue_ranges_deg: list[tuple[float, float]] = []
         max_blob_area_px: int = pydantic.Field(400, gt=0)
         group_px: float = pydantic.Field(15.0, gt=0)
         body_grey_max: int = pydantic.Field(100, ge=0, le=255)
         body_search_px: int = pydantic.Field(12, ge=0)
         box_pad_px: float = pydantic.Field(2.0, ge=0)
+        data_hue_deg: float | None = None
+        data_hue_tol_deg: float = pydantic.Field(25.0, gt=0, le=90)
 
     def __init__(self, params: "LedDetector.Params | None" = None, *, ctx: BuildContext | None = None, **_: Any):
         self.params = params or self.Params()
@@ -64,7 +71,8 @@ class LedDetector(Detector):
         hsv = cv2.cvtColor(image, cv2.COLOR_RGB2HSV)
         mask = self._mask(hsv)
         n, labels, stats, cents = cv2.connectedComponentsWithStats(mask, connectivity=8)
-        keep = [i for i in range(1, n) if stats[i, cv2.CC_STAT_AREA] <= p.max_blob_area_px]
+        keep = [i for i in range(1, n) if stats[i, cv2.CC_STAT_AREA] <= p.max_blob_area_px
+                and self._contrast_ok(hsv[..., 2], stats[i])]
         if not keep:
             return []
         groups = _group(cents[keep], p.group_px)
@@ -81,6 +89,11 @@ class LedDetector(Detector):
             gm = np.isin(sub, comp)
             w = value[y0:y1, x0:x1] * gm
             tot = float(w.sum())
+            level = tot
+            if p.data_hue_deg is not None:
+                hue = hsv[y0:y1, x0:x1, 0].astype(np.float64) * 2.0
+                dh = np.abs((hue - p.data_hue_deg + 180.0) % 360.0 - 180.0)
+                level = 0.05 + float((w * (dh <= p.data_hue_tol_deg)).sum())
             vv, uu = np.mgrid[y0:y1, x0:x1]
             cu, cv_ = float((w * uu).sum() / tot), float((w * vv).sum() / tot)
             if grey is None:
@@ -88,8 +101,19 @@ class LedDetector(Detector):
             box = self._body_box(grey, mask, (x0, y0, x1, y1))
             leds = np.array([cents[c] for c in comp], float).reshape(-1, 2)
             score = float(1.0 - np.exp(-float(gm.sum()) / 3.0))
-            out.append(Detection(box, (cu, cv_), score, "vehicle", leds, None, tot))
+            out.append(Detection(box, (cu, cv_), score, "vehicle", leds, None, level))
         return out
+
+    def _contrast_ok(self, value: np.ndarray, st) -> bool:
+        x, y, w, h = (int(st[k]) for k in (cv2.CC_STAT_LEFT, cv2.CC_STAT_TOP, cv2.CC_STAT_WIDTH, cv2.CC_STAT_HEIGHT))
+        H, W = value.shape
+        x0, y0, x1, y1 = max(x - 3, 0), max(y - 3, 0), min(x + w + 3, W), min(y + h + 3, H)
+        win = value[y0:y1, x0:x1]
+        ring = np.ones(win.shape, bool)
+        ring[y - y0: y - y0 + h, x - x0: x - x0 + w] = False
+        if not ring.any():
+            return True
+        return int(value[y:y + h, x:x + w].max()) - float(np.median(win[ring])) >= self.params.min_contrast
 
     def _body_box(self, grey: np.ndarray, mask: np.ndarray, led_box) -> tuple[float, float, float, float]:
         p = self.params

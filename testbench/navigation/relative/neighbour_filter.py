@@ -55,6 +55,7 @@ class NeighbourFilter:
         self.gate1 = float(chi2.ppf(self.s.gate_prob, 1))
         self.gate2 = float(chi2.ppf(self.s.gate_prob, 2))
         self.consecutive_rejects = 0
+        self.consecutive_bearing_rejects = 0
         self.counters = {"range_accepted": 0, "range_rejected": 0, "range_soft": 0,
                          "bearing_accepted": 0, "bearing_rejected": 0}
         self.last_bearing_t_s = -np.inf
@@ -102,9 +103,11 @@ class NeighbourFilter:
         self.predict(t_s)
         m = np.asarray(m_xy, float)
         h, H = self.bearing_model(R_nc, cam_offset_ned_m)
-        if ((self.x[:3] - cam_offset_ned_m) @ R_nc)[2] <= 0:
+        d = (self.x[:3] - cam_offset_ned_m) @ R_nc
+        if d[2] <= 0.1 * np.linalg.norm(d):  # behind or beside the camera: a wrong association
             self.counters["bearing_rejected"] += 1
-            return float("inf"), False  # behind the camera: a wrong association
+            self.consecutive_bearing_rejects += 1
+            return float("inf"), False
         sig2 = (self.s.bearing_sigma_px / focal_px) ** 2 + att_sigma_rad**2 * (1.0 + m @ m) ** 2
         R = np.eye(2) * sig2
         y = m - h
@@ -112,7 +115,9 @@ class NeighbourFilter:
         nis = float(y @ np.linalg.solve(S, y))
         if nis > self.gate2:
             self.counters["bearing_rejected"] += 1
+            self.consecutive_bearing_rejects += 1
             return nis, False
+        self.consecutive_bearing_rejects = 0
         self._update(y, H, R)
         self.counters["bearing_accepted"] += 1
         self.last_bearing_t_s = float(t_s)
@@ -140,6 +145,7 @@ class NeighbourFilter:
             R = R + (y[0] ** 2 / self.gate1 - S)
             self.counters["range_soft"] += 1
         self.consecutive_rejects = 0
+        self.consecutive_bearing_rejects = 0
         self._update(y, H, R)
         self.counters["range_accepted"] += 1
         self.last_range_t_s = float(t_s)

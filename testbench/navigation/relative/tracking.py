@@ -93,7 +93,9 @@ class Tracker:
 
     def _R(self, h: float) -> np.ndarray:
         sp = max(self.s.sigma_px_min, self.s.pos_sigma_frac * h)
-        return np.diag([sp**2, sp**2, 0.15**2, (max(0.5, 0.1 * h)) ** 2])
+        # Box shape of a vehicle a few pixels tall jumps with the blink state and the body
+        # segmentation: loose on aspect and height, the centre carries the association.
+        return np.diag([sp**2, sp**2, 0.5**2, (max(1.5, 0.3 * h)) ** 2])
 
     def _new_kf(self, z: np.ndarray) -> KalmanFilter:
         kf = KalmanFilter(dim_x=8, dim_z=4)
