@@ -186,6 +186,8 @@ class RelnavAid(NavigationAid):
         t = float(frame.t_s)
         fi = led_code.frame_index(t, self.led_rate_hz)
         n_cam = int(round(t * self.cam_rate[name]))
+        # A full frame, when the camera rendered one, is searched whole on full-frame ticks and
+        # while this camera has no track; otherwise only around the predicted tracks.
         full_due = (not self.params.roi.enabled) or n_cam % self.params.roi.full_frame_every == 0 or not tracker.tracks
         dets, truths = [], []
         for part in frame_parts(frame, cam.width_px, cam.height_px):
@@ -318,14 +320,14 @@ class RelnavAid(NavigationAid):
 
     def render_requests(self, t_s: float) -> dict[str, list[tuple[int, int, int, int]]]:
         """Regions each camera should render at t_s (full-frame pixels, u1/v1 exclusive):
-        the whole frame [(0, 0, W, H)] on full-frame ticks (every roi.full_frame_every frames,
-        or while a camera has no track), else the merged regions around predicted tracks and
-        projected neighbour estimates (may be empty: nothing to render)."""
+        the whole frame [(0, 0, W, H)] on full-frame ticks (every roi.full_frame_every frames),
+        else the merged regions around predicted tracks and projected neighbour estimates (may
+        be empty: nothing to render; new vehicles are found on the next full frame)."""
         out = {}
         for name, (cam, _) in self.cams.items():
             n_cam = int(round(t_s * self.cam_rate[name]))
             rp = self.params.roi
-            if not rp.enabled or n_cam % rp.full_frame_every == 0 or not self.trackers[name].tracks:
+            if not rp.enabled or n_cam % rp.full_frame_every == 0:
                 out[name] = [(0, 0, cam.width_px, cam.height_px)]
             else:
                 out[name] = self._track_rois(name, t_s)
