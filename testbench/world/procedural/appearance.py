@@ -122,30 +122,41 @@ def terrain_shadow(z: np.ndarray, gsd_m: float, season: Season, max_len_px: int 
     return shadow.astype(np.float32)
 
 
-def finish(rgb: np.ndarray, season: Season, rng: np.random.Generator, gsd_m: float) -> np.ndarray:
-    """Camera finish: brightness/contrast, haze, a little optical blur and sensor noise.
-
-    rgb: (H, W, 3) float32 in 0..1 (modified in place); returns uint8 (H, W, 3).
-    """
+def tone(rgb: np.ndarray, season: Season, gsd_m: float) -> None:
+    """Camera finish, in place on (H, W, 3) float32 0..1: desaturation towards luminance,
+    brightness/contrast, haze and a little optical blur (reach ~3 px)."""
     # real aerial imagery is far less saturated than a palette: pull towards luminance
     lum = rgb.mean(axis=2, keepdims=True)
     rgb *= np.float32(0.72)
-    rgb += np.float32(0.28) * lum
+    lum *= np.float32(0.28)
+    rgb += lum
     del lum
     c = np.float32(season.contrast)
-    rgb -= np.float32(0.35)
-    rgb *= c
-    rgb += np.float32(0.35 * season.brightness)
     haze = np.float32(season.haze)
-    rgb *= (1 - haze)
-    rgb += haze * np.array([0.62, 0.66, 0.72], np.float32)
+    # (x - 0.35) * c + 0.35 * brightness, then haze: one affine map per channel
+    gain = c * (1 - haze)
+    bias = ((np.float32(0.35 * season.brightness) - np.float32(0.35) * c) * (1 - haze)
+            + haze * np.array([0.62, 0.66, 0.72], np.float32))
+    rgb *= gain
+    rgb += bias
     sigma = 0.55 if gsd_m < 2 else 0.35
     cv2.GaussianBlur(rgb, (0, 0), sigma, dst=rgb)
-    noise = rng.standard_normal(rgb.shape[:2], dtype=np.float32) * np.float32(0.012)
+
+
+def grain(rgb: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Sensor noise and quantisation: (H, W, 3) float32 0..1 (modified) -> uint8 (H, W, 3)."""
+    noise = rng.standard_normal(rgb.shape[:2], dtype=np.float32)
+    noise *= np.float32(0.012 * 255.0)
+    rgb *= np.float32(255.0)
     rgb += noise[..., None]
-    rgb *= 255.0
     np.clip(rgb, 0, 255, out=rgb)
     return rgb.astype(np.uint8)
+
+
+def finish(rgb: np.ndarray, season: Season, rng: np.random.Generator, gsd_m: float) -> np.ndarray:
+    """tone + grain of a whole image (H, W, 3) float32 (modified); returns uint8."""
+    tone(rgb, season, gsd_m)
+    return grain(rgb, rng)
 
 
 def tint(base: np.ndarray, mask: np.ndarray, color, amount=1.0) -> None:

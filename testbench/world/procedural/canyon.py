@@ -7,10 +7,11 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from testbench.world.procedural.appearance import Season, finish, hillshade, terrain_shadow, tint
-from testbench.world.procedural.features import crowns, paint_trees, water_colour
+from testbench.world.procedural.appearance import hillshade, terrain_shadow, tint
+from testbench.world.procedural.bands import Terrain
+from testbench.world.procedural.features import paint_trees, water_colour
 from testbench.world.procedural.linework import distance_to, draw_paths, meander, smooth_path
-from testbench.world.procedural.noise import fbm, resize_to, smoothstep, stream, value_noise
+from testbench.world.procedural.noise import CoarseGrid, Fbm, ValueNoise, fbm, smoothstep, stream
 
 _D8 = [(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)]
 
@@ -58,89 +59,129 @@ def _thermal(z, talus, iters, rate=0.25):
     return z
 
 
-def make_canyon(seed: int, shape, gsd_m: float, season: Season):
-    h, w = shape
-    rng_l = stream(seed, "canyon-layout")
-    rng_a = stream(seed, f"canyon-look-{season.name}")
-    size_m = h * gsd_m
-    n = int(min(512, max(64, h // 4)))
-    cg = size_m / n  # coarse cell (m)
-    cs = (n, n)
-    plateau = 18.0 * fbm(rng_l, cs, 2500.0 / cg, 4)
-    depth = rng_l.uniform(220.0, 320.0)
-    main = smooth_path(meander(rng_l, cs, 60.0 / cg, 0.3))
-    paths = [main]
-    widths = [rng_l.uniform(450.0, 650.0)]
-    for k in rng_l.integers(len(main) // 8, len(main) - len(main) // 8, 9):
-        side = rng_l.choice([-1.0, 1.0])
-        d = main[min(k + 1, len(main) - 1)] - main[k]
-        hd = np.arctan2(d[1], d[0]) + side * rng_l.uniform(0.9, 1.6)
-        trib = smooth_path(meander(rng_l, cs, 50.0 / cg, 0.4, start=tuple(main[k]), heading=hd,
-                                   max_steps=int(rng_l.uniform(600.0, 1800.0) / 50.0)))
-        paths.append(trib)
-        widths.append(rng_l.uniform(150.0, 300.0))
-    cut = np.zeros(cs, np.float32)
-    wall_noise = 0.25 * fbm(rng_l, cs, 300.0 / cg, 4, min_cell_px=1)
-    for i, (p, wd) in enumerate(zip(paths, widths)):
-        dist = distance_to(draw_paths(cs, [p])) * np.float32(cg)
-        x = dist / np.float32(wd) * (1.0 + wall_noise)
-        prof = np.clip(1.0 - x, 0.0, 1.0) ** 1.6
-        if i > 0:  # tributaries: shallower, fading towards their heads
-            along = np.linspace(1.0, 0.2, len(p))
-            fade = np.zeros(cs, np.float32)
-            pts = np.round(p).astype(int)
-            ok = (pts[:, 0] >= 0) & (pts[:, 0] < n) & (pts[:, 1] >= 0) & (pts[:, 1] < n)
-            fade[pts[ok, 1], pts[ok, 0]] = along[ok]
-            fade = cv2.dilate(fade, np.ones((int(2 * wd / cg) | 1,) * 2, np.uint8))
-            prof *= fade * 0.8
-        cut = np.maximum(cut, prof)
-    # strata: hard layers form cliffs, soft layers benches (terraced walls)
-    zc = plateau - depth * cut
-    layer = 38.0
-    t = (zc + 1000.0) / layer
-    frac = t - np.floor(t)
-    zc = (np.floor(t) + smoothstep(0.0, 0.35, frac) * 0.8 + 0.2 * frac) * layer - 1000.0
-    zc = zc.astype(np.float32) + 2.0 * fbm(rng_l, cs, 60.0 / cg, 3, min_cell_px=1)
-    # gullies: incision by stream power (accumulated flow, local slope), then talus slumping
-    for _ in range(3):
-        acc, slope = _flow_accumulation(zc, 3 * n)
-        zc -= np.clip(0.5 * np.sqrt(acc) * np.minimum(slope, 2.0), 0, 12.0)
-        zc = _thermal(zc, talus=1.2 * cg, iters=4)
-    acc = _flow_accumulation(zc, 3 * n)[0]
-    # upsample: cubic + fine roughness
-    z = resize_to(zc.astype(np.float32), shape, cv2.INTER_CUBIC)
-    z += 1.5 * fbm(rng_l, shape, 25.0 / gsd_m, 3, min_cell_px=2)
-    river_d = distance_to(draw_paths(cs, [main])) * np.float32(cg)
-    river_d = resize_to(river_d, shape)
-    z -= 4.0 * smoothstep(30.0, 0.0, river_d)
-    # --- appearance: rock colour by stratum, slope; benches with scrub; river and riparian
-    band = np.sin((z + 1000.0) / 9.0 + 1.2 * fbm(rng_l, shape, 400.0 / gsd_m, 2)) * 0.5 + 0.5
-    rock_a = np.float32([0.66, 0.42, 0.28])
-    rock_b = np.float32([0.80, 0.66, 0.50])
-    rgb = rock_a + (rock_b - rock_a) * band[..., None]
-    del band
-    rgb *= (1 + 0.06 * fbm(rng_a, shape, 60.0 / gsd_m, 4) + 0.05 * value_noise(rng_a, shape, 2.0 / gsd_m))[..., None]
-    gy = cv2.Sobel(z, cv2.CV_32F, 0, 1, ksize=3) / np.float32(8 * gsd_m)
-    gx = cv2.Sobel(z, cv2.CV_32F, 1, 0, ksize=3) / np.float32(8 * gsd_m)
-    slope = np.sqrt(gx * gx + gy * gy)
-    del gx, gy
-    flat = smoothstep(0.5, 0.15, slope)
-    veg = np.float32([[0.42, 0.42, 0.30], [0.50, 0.44, 0.32], [0.80, 0.80, 0.80], [0.40, 0.44, 0.28]][season.index])
-    tint(rgb, flat * (0.35 + 0.3 * value_noise(rng_l, shape, 80 / gsd_m)), veg, 1.0)
-    if season.snow > 0:
-        tint(rgb, flat * smoothstep(-40.0, 20.0, z), (0.88, 0.88, 0.90), season.snow)
-    scrub = flat * smoothstep(0.3, 0.7, value_noise(rng_l, shape, 200 / gsd_m))
-    paint_trees(rgb, scrub.astype(np.float32), crowns(rng_l, shape, gsd_m, 3.0), season, gsd_m, 4.0, 0.25)
-    half = 12.0 + 4.0 * season.water_level
-    wet = river_d < half
-    rgb[wet] = water_colour(1 - river_d[wet] / half, season) * np.float32([1.4, 1.3, 1.0])
-    rip = ((river_d >= half) & (river_d < half + 15.0)).astype(np.float32) * 0.7
-    paint_trees(rgb, rip, crowns(rng_l, shape, gsd_m, 6.0), season, gsd_m, 8.0, 0.6)
-    del flat, scrub, rip, slope
-    hs = hillshade(z, gsd_m, season)
-    sh = resize_to(terrain_shadow(zc.astype(np.float32), cg, season, max_len_px=n // 2), shape)
-    sh = cv2.GaussianBlur(sh, (0, 0), 2.0)
-    light = 0.25 + 0.95 * hs * (1 - 0.85 * sh)
-    rgb *= light[..., None]
-    del hs, sh, light
-    return finish(rgb, season, rng_a, gsd_m), z, np.ones(shape, bool)
+class Canyon(Terrain):
+    """Canyon world: relief eroded on a coarse grid (k x k full-res pixels per cell), the
+    look painted band by band at full resolution."""
+
+    name = "canyon"
+    halo_m = 30.0
+
+    def __init__(self, seed, shape, gsd_m, season):
+        super().__init__(seed, shape, gsd_m, season)
+        h, w = shape
+        rng_l = stream(seed, "canyon-layout")
+        rng_a = stream(seed, f"canyon-look-{season.name}")
+        n_target = int(min(512, max(64, h // 4)))
+        kc = max(1, int(round(h / n_target)))
+        cgrid = CoarseGrid(shape, gsd_m, kc, 0)
+        cs = cgrid.shape
+        n = cs[1]
+        cg = kc * gsd_m  # coarse cell (m)
+        plateau = 18.0 * fbm(rng_l, cs, 2500.0 / cg, 4)
+        depth = rng_l.uniform(220.0, 320.0)
+        main = smooth_path(meander(rng_l, cs, 60.0 / cg, 0.3))
+        paths = [main]
+        widths = [rng_l.uniform(450.0, 650.0)]
+        for k in rng_l.integers(len(main) // 8, len(main) - len(main) // 8, 9):
+            side = rng_l.choice([-1.0, 1.0])
+            d = main[min(k + 1, len(main) - 1)] - main[k]
+            hd = np.arctan2(d[1], d[0]) + side * rng_l.uniform(0.9, 1.6)
+            trib = smooth_path(meander(rng_l, cs, 50.0 / cg, 0.4, start=tuple(main[k]), heading=hd,
+                                       max_steps=int(rng_l.uniform(600.0, 1800.0) / 50.0)))
+            paths.append(trib)
+            widths.append(rng_l.uniform(150.0, 300.0))
+        cut = np.zeros(cs, np.float32)
+        wall_noise = 0.25 * fbm(rng_l, cs, 300.0 / cg, 4, min_cell_px=1)
+        for i, (p, wd) in enumerate(zip(paths, widths)):
+            dist = distance_to(draw_paths(cs, [p])) * np.float32(cg)
+            x = dist / np.float32(wd) * (1.0 + wall_noise)
+            prof = np.clip(1.0 - x, 0.0, 1.0) ** 1.6
+            if i > 0:  # tributaries: shallower, fading towards their heads
+                along = np.linspace(1.0, 0.2, len(p))
+                fade = np.zeros(cs, np.float32)
+                pts = np.round(p).astype(int)
+                ok = (pts[:, 0] >= 0) & (pts[:, 0] < cs[1]) & (pts[:, 1] >= 0) & (pts[:, 1] < cs[0])
+                fade[pts[ok, 1], pts[ok, 0]] = along[ok]
+                fade = cv2.dilate(fade, np.ones((int(2 * wd / cg) | 1,) * 2, np.uint8))
+                prof *= fade * 0.8
+            cut = np.maximum(cut, prof)
+        # strata: hard layers form cliffs, soft layers benches (terraced walls)
+        zc = plateau - depth * cut
+        layer = 38.0
+        t = (zc + 1000.0) / layer
+        frac = t - np.floor(t)
+        zc = (np.floor(t) + smoothstep(0.0, 0.35, frac) * 0.8 + 0.2 * frac) * layer - 1000.0
+        zc = zc.astype(np.float32) + 2.0 * fbm(rng_l, cs, 60.0 / cg, 3, min_cell_px=1)
+        # gullies: incision by stream power (accumulated flow, local slope), then talus slumping
+        for _ in range(3):
+            acc, slope = _flow_accumulation(zc, 3 * n)
+            zc -= np.clip(0.5 * np.sqrt(acc) * np.minimum(slope, 2.0), 0, 12.0)
+            zc = _thermal(zc, talus=1.2 * cg, iters=4)
+        zc = zc.astype(np.float32)
+        # D8 incision and talus moves leave cell-sized steps: upsampled and hillshaded they
+        # print the coarse grid as a cross-hatch on steep walls; smooth them off first
+        self.zc = cgrid.field(cv2.GaussianBlur(zc, (0, 0), 0.9), cubic=True)
+        self.rough = Fbm(rng_l, self.grid, shape, 25.0 / gsd_m, 3, min_cell_px=2)
+        self.river_d = cgrid.field(distance_to(draw_paths(cs, [main])) * np.float32(cg))
+        # --- appearance fields
+        self.band_n = Fbm(rng_l, self.grid, shape, 400.0 / gsd_m, 2)
+        self.rock_a = Fbm(rng_a, self.grid, shape, 60.0 / gsd_m, 4)
+        self.rock_g = ValueNoise(rng_a, shape, 2.0 / gsd_m)
+        self.veg_n = ValueNoise(rng_l, shape, 80 / gsd_m)
+        self.scrub_n = ValueNoise(rng_l, shape, 200 / gsd_m)
+        self.crowns_s = ValueNoise(rng_l, shape, max(3.0 / gsd_m, 1.2))
+        self.crowns_r = ValueNoise(rng_l, shape, max(6.0 / gsd_m, 1.2))
+        self.shadow = cgrid.field(terrain_shadow(zc, cg, season, max_len_px=n // 2))
+
+    def rows(self, a, b):
+        gsd, season = self.gsd_m, self.season
+        z = self.zc.rows(a, b)
+        z += np.float32(1.5) * self.rough.rows(a, b)
+        river_d = self.river_d.rows(a, b)
+        z -= np.float32(4.0) * smoothstep(30.0, 0.0, river_d)
+        # --- appearance: rock colour by stratum, slope; benches with scrub; river and riparian
+        gy = cv2.Sobel(z, cv2.CV_32F, 0, 1, ksize=3) / np.float32(8 * gsd)
+        gx = cv2.Sobel(z, cv2.CV_32F, 1, 0, ksize=3) / np.float32(8 * gsd)
+        slope = np.sqrt(gx * gx + gy * gy)
+        del gx, gy
+        # strata bands of 9 m: on steep walls a band is narrower than a pixel, so fade the
+        # banding out where its phase changes faster than ~1 rad per pixel (no hatching moire)
+        phase_per_px = slope * np.float32(gsd / 9.0)
+        band_amp = smoothstep(1.2, 0.4, phase_per_px)
+        band = np.sin((z + np.float32(1000.0)) / np.float32(9.0) + np.float32(1.2) * self.band_n.rows(a, b))
+        band *= band_amp
+        band *= np.float32(0.5)
+        band += np.float32(0.5)
+        del phase_per_px, band_amp
+        rock_a = np.float32([0.66, 0.42, 0.28])
+        rock_b = np.float32([0.80, 0.66, 0.50])
+        rgb = rock_a + (rock_b - rock_a) * band[..., None]
+        del band
+        tex = self.rock_a.rows(a, b)
+        tex *= np.float32(0.06)
+        tex += np.float32(0.05) * self.rock_g.rows(a, b)
+        tex += np.float32(1.0)
+        rgb *= tex[..., None]
+        del tex
+        flat = smoothstep(0.5, 0.15, slope)
+        veg = np.float32([[0.42, 0.42, 0.30], [0.50, 0.44, 0.32], [0.80, 0.80, 0.80], [0.40, 0.44, 0.28]][season.index])
+        tint(rgb, flat * (0.35 + 0.3 * self.veg_n.rows(a, b)), veg, 1.0)
+        if season.snow > 0:
+            tint(rgb, flat * smoothstep(-40.0, 20.0, z), (0.88, 0.88, 0.90), season.snow)
+        scrub = flat * smoothstep(0.3, 0.7, self.scrub_n.rows(a, b))
+        paint_trees(rgb, scrub, self.crowns_s.rows(a, b), season, gsd, 4.0, 0.25)
+        half = 12.0 + 4.0 * season.water_level
+        wet = river_d < half
+        rgb[wet] = water_colour(1 - river_d[wet] / half, season) * np.float32([1.4, 1.3, 1.0])
+        rip = ((river_d >= half) & (river_d < half + 15.0)).astype(np.float32) * 0.7
+        paint_trees(rgb, rip, self.crowns_r.rows(a, b), season, gsd, 8.0, 0.6)
+        del flat, scrub, rip, slope, river_d
+        hs = hillshade(z, gsd, season)
+        sh = cv2.GaussianBlur(self.shadow.rows(a, b), (0, 0), 2.0)
+        sh *= np.float32(-0.85)
+        sh += np.float32(1.0)
+        hs *= sh
+        hs *= np.float32(0.95)
+        hs += np.float32(0.25)
+        rgb *= hs[..., None]
+        return rgb, z

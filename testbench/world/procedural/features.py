@@ -55,36 +55,81 @@ ROOF_COLOURS = np.float32([
 ])
 
 
-def draw_buildings(rgb, buildings, season: Season, gsd_m: float, height_m: float = 7.0):
-    """Buildings: list of (centre_col, centre_row, length_px, width_px, angle_rad, colour_idx).
+def boxes(cc, rr, ln, wd, ang) -> np.ndarray:
+    """Corners (N, 4, 2) (col, row) of rectangles centred (cc, rr), length ln along the image
+    angle ang (rad, from +col towards +row), width wd (as cv2.boxPoints, vectorised)."""
+    cc, rr, ln, wd, ang = (np.asarray(x, np.float64).reshape(-1) for x in (cc, rr, ln, wd, ang))
+    ux, uy = np.cos(ang) * ln / 2, np.sin(ang) * ln / 2
+    vx, vy = -np.sin(ang) * wd / 2, np.cos(ang) * wd / 2
+    sx = np.array([1, 1, -1, -1])[None, :]
+    sy = np.array([1, -1, -1, 1])[None, :]
+    return np.stack([cc[:, None] + sx * ux[:, None] + sy * vx[:, None],
+                     rr[:, None] + sx * uy[:, None] + sy * vy[:, None]], axis=2)
 
-    Gable roofs: the two halves along the ridge are shaded by the sun; walls cast shadows.
-    Returns the footprint mask (bool).
-    """
-    h, w = rgb.shape[:2]
-    foot = np.zeros((h, w), np.uint8)
-    half_a = np.zeros((h, w), np.uint8)
-    idx = np.zeros((h, w), np.uint8)
-    for (cc, rr, ln, wd, ang, ci) in buildings:
-        box = cv2.boxPoints(((cc, rr), (ln, wd), np.degrees(ang)))
-        cv2.fillPoly(foot, [np.round(box * 4).astype(np.int32)], 255, cv2.LINE_8, shift=2)
-        cv2.fillPoly(idx, [np.round(box * 4).astype(np.int32)], int(ci) + 1, cv2.LINE_8, shift=2)
-        # one half of the gable: the side towards +normal of the ridge
-        ca, sa = np.cos(ang), np.sin(ang)
-        nx, ny = -sa * wd / 4, ca * wd / 4
-        half = cv2.boxPoints(((cc + nx, rr + ny), (ln, wd / 2), np.degrees(ang)))
-        cv2.fillPoly(half_a, [np.round(half * 4).astype(np.int32)], 255, cv2.LINE_8, shift=2)
-    m = foot > 0
-    if not m.any():
+
+def fill_polys(canvas: np.ndarray, polys: np.ndarray, row0: int, value) -> None:
+    """Fill polygons (N, K, 2) (col, row image coordinates) into canvas whose row 0 is row0."""
+    if len(polys):
+        p = np.round((polys - np.array([0.0, row0])) * 4).astype(np.int32)
+        cv2.fillPoly(canvas, list(p), value, cv2.LINE_8, shift=2)
+
+
+class Buildings:
+    """Buildings: rows of (centre_col, centre_row, length_px, width_px, angle_rad, colour_idx),
+    drawn band by band (gable roofs shaded by the sun, walls casting shadows)."""
+
+    def __init__(self, items, height_m: float = 7.0, tone=None):
+        a = np.asarray(items, np.float64).reshape(-1, 6)
+        self.height_m = height_m
+        self.ci = a[:, 5].astype(np.int64) % len(ROOF_COLOURS)
+        self.box = boxes(a[:, 0], a[:, 1], a[:, 2], a[:, 3], a[:, 4])
+        ca, sa = np.cos(a[:, 4]), np.sin(a[:, 4])
+        nx, ny = -sa * a[:, 3] / 4, ca * a[:, 3] / 4
+        self.half = boxes(a[:, 0] + nx, a[:, 1] + ny, a[:, 2], a[:, 3] / 2, a[:, 4])
+        self.rmin = self.box[:, :, 1].min(axis=1)
+        self.rmax = self.box[:, :, 1].max(axis=1)
+        # per-building brightness (weathering, material): breaks the palette look
+        self.tone = np.ones(len(a), np.float32) if tone is None else np.asarray(tone, np.float32)
+
+    def draw(self, rgb, row0: int, season: Season, gsd_m: float, texture=None) -> np.ndarray:
+        """Paint the buildings on rgb (n, W, 3) float32 whose row 0 is image row row0.
+
+        texture: optional (n, W) float32 multiplicative roof texture around 1.
+        Returns the footprint mask (n, W) bool.
+        """
+        h, w = rgb.shape[:2]
+        sel = np.flatnonzero((self.rmax >= row0 - 1) & (self.rmin <= row0 + h + 1))
+        m = np.zeros((h, w), bool)
+        if sel.size == 0:
+            return m
+        idx = np.zeros((h, w), np.int32)  # building index + 1 (colour, tone)
+        half_a = np.zeros((h, w), np.uint8)
+        p = np.round((self.box[sel] - np.array([0.0, row0])) * 4).astype(np.int32)
+        for j, k in enumerate(sel):
+            cv2.fillPoly(idx, [p[j]], int(k) + 1, cv2.LINE_8, shift=2)
+        fill_polys(half_a, self.half[sel], row0, 255)
+        m = idx > 0
+        if not m.any():
+            return m
+        sh = cast_shadow(m, self.height_m, gsd_m, season)
+        sh *= np.float32(-0.6)
+        sh += np.float32(1.0)
+        rgb *= sh[..., None]
+        bid = idx[m].astype(np.int64) - 1
+        col = ROOF_COLOURS[self.ci[bid]] * self.tone[bid][:, None]
+        ha = half_a[m] > 0
+        # sun-facing half brighter; the normal of half A points (nx, ny) in image = (east, south)
+        col *= np.where(ha, np.float32(1.12), np.float32(0.80))[:, None]
+        if texture is not None:
+            col *= texture[m][:, None]
+        if season.name == "winter":
+            col = col * 0.35 + np.float32(0.88) * 0.65
+        rgb[m] = col
         return m
-    sh = cast_shadow(m, height_m, gsd_m, season)
-    rgb *= (1.0 - 0.6 * sh)[..., None]
-    col = ROOF_COLOURS[(idx[m].astype(np.int64) - 1) % len(ROOF_COLOURS)]
-    ha = half_a[m] > 0
-    # sun-facing half brighter; the normal of half A points (nx, ny) in image = (east, south)
-    light = np.float32(1.12)
-    dark = np.float32(0.80)
-    rgb[m] = col * np.where(ha, light, dark)[:, None]
-    if season.name == "winter":
-        rgb[m] = rgb[m] * 0.35 + np.float32(0.88) * 0.65
-    return m
+
+
+def draw_buildings(rgb, buildings, season: Season, gsd_m: float, height_m: float = 7.0):
+    """Whole-image form of Buildings.draw (list of (cc, rr, length, width, angle, colour))."""
+    if len(buildings) == 0:
+        return np.zeros(rgb.shape[:2], bool)
+    return Buildings(buildings, height_m).draw(rgb, 0, season, gsd_m)

@@ -5,6 +5,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from testbench.world.procedural.noise import CoarseGrid, Field
+
 
 def meander(rng: np.random.Generator, shape: tuple[int, int], step_px: float,
             wiggle: float = 0.25, start=None, heading=None, max_steps: int | None = None):
@@ -46,10 +48,14 @@ def smooth_path(path: np.ndarray, times: int = 2) -> np.ndarray:
     return path
 
 
-def draw_paths(shape, paths, width_px: float = 1.0) -> np.ndarray:
-    """Rasterise polylines (list of (N, 2) col,row) into a uint8 (H, W) mask (255 on lines)."""
+def draw_paths(shape, paths, width_px: float = 1.0, row0: int = 0) -> np.ndarray:
+    """Rasterise polylines (list of (N, 2) col,row) into a uint8 (H, W) mask (255 on lines).
+
+    row0: the mask's first row is image row row0 (a band of a larger image).
+    """
     m = np.zeros(shape, np.uint8)
-    pts = [np.round(p * 4).astype(np.int32).reshape(-1, 1, 2) for p in paths if len(p) > 1]
+    off = np.array([0.0, float(row0)])
+    pts = [np.round((p - off) * 4).astype(np.int32).reshape(-1, 1, 2) for p in paths if len(p) > 1]
     if pts:
         cv2.polylines(m, pts, False, 255, thickness=max(1, int(round(width_px))),
                       lineType=cv2.LINE_AA, shift=2)
@@ -59,4 +65,28 @@ def draw_paths(shape, paths, width_px: float = 1.0) -> np.ndarray:
 def distance_to(mask_u8: np.ndarray) -> np.ndarray:
     """Distance (px, float32) of every pixel to the nearest non-zero pixel of mask."""
     inv = np.where(mask_u8 > 127, 0, 255).astype(np.uint8)
+    if inv.all():  # nothing drawn here: "far away", finite
+        return np.full(mask_u8.shape, 1e6, np.float32)
     return cv2.distanceTransform(inv, cv2.DIST_L2, 5)
+
+
+class PathDistance(Field):
+    """Distance (px, float32) to polylines, by rows: exact (chamfer 5x5 at full resolution) up to
+    near_px, beyond that from a distance transform on the coarse grid (far field, smooth)."""
+
+    def __init__(self, grid: CoarseGrid, shape, paths, near_px: int, width_px: float = 1.0):
+        self.width = shape[1]
+        self.paths, self.near, self.lw = [np.asarray(p, float) for p in paths], int(near_px), width_px
+        cp = [grid.to_px(p) for p in self.paths]
+        far = distance_to(draw_paths(grid.shape, cp, max(1.0, width_px / grid.k))) * np.float32(grid.k)
+        self.far = grid.field(far)
+
+    def rows(self, r0, r1):
+        a, b = r0 - self.near, r1 + self.near
+        far = self.far.rows(r0, r1)
+        m = draw_paths((b - a, self.width), self.paths, self.lw, row0=a)
+        if not (m > 127).any():
+            return np.maximum(far, np.float32(self.near), out=far)
+        fine = distance_to(m)[self.near:self.near + r1 - r0]
+        lim = np.float32(self.near)
+        return np.where(fine < lim, fine, np.maximum(far, lim))
