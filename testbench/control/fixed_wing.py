@@ -109,6 +109,7 @@ class FixedWingController(Controller):
         self._int_v = 0.0
         self._int_h = 0.0
         self._int_phi = 0.0
+        self._status_inputs: tuple | None = None  # arguments of _guidance_status for the latest tick
         self._status = GuidanceStatus(t_s=0.0)
 
     # -- helpers ---------------------------------------------------------------------------
@@ -135,19 +136,36 @@ class FixedWingController(Controller):
         out = self.follower.update_ne(p_n, p_e, v_n, v_e, lead_s=self._roll_lead_s, turn_rate_rps=turn_rate)
         h_cmd = self._alt_cmd_by_segment[out.segment_index]
         cmd = self.autopilot(t_s, estimate, out.bank_cmd_rad, h_cmd, self.airspeed_cmd_mps)
-        on_leg, line_start, line_end = self._leg_geometry[out.segment_index]
-        self._status = GuidanceStatus(
+        self._status_inputs = (t_s, out.segment_index, h_cmd, out.bank_cmd_rad, out.cross_track_m)
+        return cmd
+
+    def _guidance_status(self, t_s: float, seg_index: int, h_cmd: float, bank_cmd: float, cross_track: float) -> GuidanceStatus:
+        on_leg, line_start, line_end = self._leg_geometry[seg_index]
+        return GuidanceStatus(
             t_s=t_s,
-            leg_index=out.segment_index,
+            leg_index=seg_index,
             on_leg=on_leg,
             alt_cmd_m=h_cmd,
             airspeed_cmd_mps=self.airspeed_cmd_mps,
             line_start_ne_m=line_start,
             line_end_ne_m=line_end,
-            bank_cmd_rad=out.bank_cmd_rad,
-            cross_track_est_m=out.cross_track_m,
+            bank_cmd_rad=bank_cmd,
+            cross_track_est_m=cross_track,
         )
-        return cmd
+
+    # The status is built when asked for (the engine records it at the record rate, below the
+    # control rate); `_status` stays an attribute for subclasses that read or replace it.
+    @property
+    def _status(self) -> GuidanceStatus:
+        if self._status_inputs is not None:
+            self._status_value = self._guidance_status(*self._status_inputs)
+            self._status_inputs = None
+        return self._status_value
+
+    @_status.setter
+    def _status(self, value: GuidanceStatus) -> None:
+        self._status_value = value
+        self._status_inputs = None
 
     def autopilot(self, t_s: float, estimate: NavEstimate, phi_c: float, h_cmd: float, v_cmd: float) -> SurfaceCommand:
         """Inner loops: bank phi_c (rad), altitude h_cmd (m above origin), airspeed v_cmd (m/s)."""

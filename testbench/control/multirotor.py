@@ -144,6 +144,7 @@ class MultirotorController(Controller):
         self._yaw_sp: float | None = None
         self._int_v = (0.0, 0.0, 0.0)
         self._t_prev: float | None = None
+        self._status_inputs: tuple | None = None  # arguments of _guidance_status for the latest tick
         self._status = GuidanceStatus(t_s=0.0)
         # Plain-float copies of what the loops read every tick.
         self._waypoints_ned = [tuple(float(c) for c in w) for w in wps]
@@ -240,17 +241,35 @@ class MultirotorController(Controller):
         moments = tuple(j[i] * (g.k_rate * (w_cmd[i] - omega[i])) + gyro[i] for i in range(3))
         cmd = RotorCommand(motors=self.mixer.commands(thrust, moments))
 
-        target = self._waypoints_ned[self.index]
-        prev_n, prev_e = float(self._prev_pt[0]), float(self._prev_pt[1])
-        self._status = GuidanceStatus(
-            t_s=t_s, leg_index=self.index, on_leg=not self.holding, alt_cmd_m=-target[2],
+        self._status_inputs = (t_s, self.index, not self.holding, float(self._prev_pt[0]), float(self._prev_pt[1]),
+                               rpy_d[0], pos[0], pos[1])
+        return cmd
+
+    def _guidance_status(self, t_s: float, index: int, on_leg: bool, prev_n: float, prev_e: float, bank_cmd: float,
+                         p_n: float, p_e: float) -> GuidanceStatus:
+        target = self._waypoints_ned[index]
+        return GuidanceStatus(
+            t_s=t_s, leg_index=index, on_leg=on_leg, alt_cmd_m=-target[2],
             line_start_ne_m=(prev_n, prev_e),
             line_end_ne_m=(target[0], target[1]),
             target_ned_m=target,
-            bank_cmd_rad=rpy_d[0],
-            cross_track_est_m=_cross_track_m(pos[0], pos[1], prev_n, prev_e, target[0], target[1]),
+            bank_cmd_rad=bank_cmd,
+            cross_track_est_m=_cross_track_m(p_n, p_e, prev_n, prev_e, target[0], target[1]),
         )
-        return cmd
+
+    # The status is built when asked for (the engine records it at the record rate, below the
+    # control rate); `_status` stays an attribute for subclasses that read or replace it.
+    @property
+    def _status(self) -> GuidanceStatus:
+        if self._status_inputs is not None:
+            self._status_value = self._guidance_status(*self._status_inputs)
+            self._status_inputs = None
+        return self._status_value
+
+    @_status.setter
+    def _status(self, value: GuidanceStatus) -> None:
+        self._status_value = value
+        self._status_inputs = None
 
     def status(self) -> GuidanceStatus:
         return self._status
