@@ -110,3 +110,34 @@ def test_quad_follower_holds_slot_behind_leader_on_jsbsim():
     print(f"formation error: start {errs[0]:.1f} m, last 10 s max {errs[-500:].max():.2f} m")
     assert errs[0] > 10.0
     assert errs[-500:].max() < 3.0  # last 10 s: on the slot within 3 m while the leader cruises
+
+
+@pytest.mark.slow
+def test_fixed_wing_follower_converges_on_a_straight_leg():
+    pytest.importorskip("jsbsim")
+    from testbench.control import evaluate as ev
+    from testbench.control.fixed_wing import FixedWingController
+    from testbench.control.formation import FixedWingFormationFollower
+    from testbench.dynamics.jsbsim_adapter import InitialCondition
+
+    slots = {"lead": (0.0, 0.0, 0.0), "f1": (-60.0, -40.0, 0.0)}
+    ctx_l = BuildContext("lead", ("lead", "f1"), ev.ORIGIN)
+    ctx_f = BuildContext("f1", ("lead", "f1"), ev.ORIGIN)
+    mission = ev.racetrack_mission(ctx_l, altitude_m=300.0, leg_length_m=3000.0)
+    dl, df = ev.make_dynamics("tb_fixedwing"), ev.make_dynamics("tb_fixedwing")
+    tl = dl.reset(InitialCondition(pos_ned_m=(0.0, 0.0, -300.0), heading_rad=0.0, airspeed_mps=25.0))
+    tf = df.reset(InitialCondition(pos_ned_m=(-80.0, -20.0, -290.0), heading_rad=0.0, airspeed_mps=25.0))
+    ev.clear_trim_settings(dl)
+    ev.clear_trim_settings(df)
+    lead = FixedWingController(FixedWingController.Params(), ctx=ctx_l, mission=mission, aircraft=dl.aircraft_meta)
+    fol = FixedWingFormationFollower(FixedWingFormationFollower.Params(slots=slots, leader_id="lead", k_slot=0.1, margin_m=20.0),
+                                     ctx=ctx_f, aircraft=df.aircraft_meta)
+    errs = []
+    for k in range(60 * 50):  # 60 s at 50 Hz, on the first straight leg after the entry
+        t = k / 50.0
+        table = {"lead": _rel("lead", tl.pos_ned_m - tf.pos_ned_m, tl.vel_ned_mps - tf.vel_ned_mps, t)}
+        cl, cf = lead.update(t, ev.truth_to_estimate(tl)), fol.update(t, ev.truth_to_estimate(tf), table)
+        tl, tf = dl.step(cl, 0.02), df.step(cf, 0.02)
+        course = math.atan2(tl.vel_ned_mps[1], tl.vel_ned_mps[0])
+        errs.append(np.linalg.norm(formation_errors({"lead": tl.pos_ned_m, "f1": tf.pos_ned_m}, course, slots, "lead")["f1"]))
+    assert errs[0] > 20.0 and max(errs[-500:]) < 2.0
