@@ -25,7 +25,7 @@ from testbench.core.registry import ParamsModel, build, register
 from testbench.core.rotations import quat_to_dcm
 from testbench.navigation.relative.diagnostics import RelnavDiagnostics, id_check
 from testbench.navigation.relative.frames import camera_model, frame_camera_name, frame_parts, is_camera_frame
-from testbench.navigation.relative.geometry import relative_from_bearing_range, undistort_normalized
+from testbench.navigation.relative.geometry import project_relative, relative_from_bearing_range, undistort_normalized
 from testbench.navigation.relative.neighbour_filter import FilterSettings, NeighbourFilter, initial_covariance
 from testbench.navigation.relative.regions import detect_regions, merge_rois, roi_around
 from testbench.navigation.relative.tracking import Tracker, TrackerSettings
@@ -302,8 +302,6 @@ class RelnavAid(NavigationAid):
         # Neighbours known from other cameras or from before: look where they should appear.
         est = self.last_estimate
         if est is not None and self.filters:
-            from testbench.navigation.relative.geometry import project_relative
-
             R_nb = quat_to_dcm(est.q_nb_wxyz)
             for f in self.filters.values():
                 x = f.x[:3] + (t - f.t_s) * f.x[3:]
