@@ -18,7 +18,7 @@ import numpy as np
 from testbench.world.procedural.appearance import Season, grain, tone
 from testbench.world.procedural.noise import CoarseGrid, grid_coords, stream
 
-BAND_PIXELS = 3_000_000  # ~ pixels per band (a few tens of MB of float32 working arrays)
+BAND_PIXELS = 2_000_000  # ~ pixels per band (a few tens of MB of float32 working arrays)
 COARSE_K = 4  # coarse grid factor for large-scale noise and distance fields
 
 

@@ -61,7 +61,8 @@ class FieldLayout:
         border = cv2.morphologyEx(dist_id.astype(np.uint8), cv2.MORPH_GRADIENT, np.ones((3, 3), np.uint8)) > 0
         self.dist_id = dist_id
         self.district = grid.field(dist_id.astype(np.float32))
-        self.border = grid.field(border.astype(np.float32))
+        # roads along district borders: a blurred coarse mask, cut at a level -> smooth curves
+        self.border = grid.field(cv2.GaussianBlur(border.astype(np.float32), (0, 0), 1.0))
         theta0 = rng.uniform(-0.25, 0.25)
         dev = rng.choice([0.0, 0.0, 0.0, 1.0], k) * rng.uniform(-0.6, 0.6, k)
         self.theta = (theta0 + dev).astype(np.float32)
@@ -81,11 +82,14 @@ class FieldLayout:
         self.big = np.float32(8.0 * lim)
         self.flat = (vb + (np.arange(ns)[:, None] * 8.0 * lim)).ravel().astype(np.float32)
         self.vspace = float(rng.choice([1600.0, 1600.0, 3200.0]))
+        # field attribute index = (field * 2654435761 + district * 97531) mod _N_ATTR, by tables
+        self.field_attr = ((np.arange(2 * ns * nv + 1, dtype=np.int64) * 2654435761) % _N_ATTR).astype(np.int32)
+        self.district_attr = ((np.arange(k, dtype=np.int64) * 97531) % _N_ATTR).astype(np.int32)
 
     def rows(self, east, north, a: int, b: int):
         """Layout of image rows [a, b) (east (1, W), north (b-a, 1))."""
         district = self.district.nearest(a, b).astype(np.int32)
-        border = self.border.rows(a, b) > 0.5
+        border = self.border.rows(a, b) > 0.42
         return self.at(east, north, district, border)
 
     def at(self, east, north, district, border):
@@ -105,9 +109,11 @@ class FieldLayout:
         kk = np.clip(np.searchsorted(self.flat, key), 1, self.flat.size - 1)
         dv = np.minimum(key - self.flat[kk - 1], self.flat[kk] - key)
         del key
-        field = (s.astype(np.int64) * self.nv + kk) * 2654435761 + district.astype(np.int64) * 97531
-        attr = (field % _N_ATTR).astype(np.int32)
-        del field, kk, s
+        kk += s * self.nv
+        attr = self.field_attr[kk]
+        attr += self.district_attr[district]
+        attr[attr >= _N_ATTR] -= _N_ATTR
+        del kk, s
         edge = np.minimum(du, dv)
         # section roads: some strip boundaries plus a regular cross grid in v; district borders
         vs = self.vspace
@@ -143,6 +149,12 @@ class Farmland(Terrain):
         self.row_period = attr_rng.uniform(3.0, 7.0, _N_ATTR).astype(np.float32)
         self.tram = attr_rng.uniform(16.0, 28.0, _N_ATTR).astype(np.float32)
         self.jitter = attr_rng.normal(0, 0.035, (_N_ATTR, 3)).astype(np.float32)
+        sidx = season.index
+        # per-field tables of this season: colour, row contrast, tramline darkening
+        self.base_tab = _CROP_RGB[sidx][self.crop] + self.jitter
+        self.amp_tab = (_ROW_AMP[sidx][self.crop]
+                        * np.clip((self.row_period / np.float32(gsd_m) - 2.0) / 2.0, 0.0, 1.0)).astype(np.float32)
+        self.tram_tab = np.where((self.crop < 3) & (sidx != 2), np.float32(0.06), np.float32(0.0))
         # --- appearance noise
         self.patch_a = Fbm(rng_a, g, shape, 180.0 / gsd_m, 5)
         self.patch_l = Fbm(rng_l, g, shape, 60.0 / gsd_m, 4)
@@ -222,19 +234,21 @@ class Farmland(Terrain):
         z, rd, lake_pot = self._z_water(a, b)
         # --- field colours (appearance)
         at = lay["attr"]
-        crop = self.crop[at]
-        base = _CROP_RGB[sidx][crop]
-        base += self.jitter[at]
+        base = self.base_tab[at]
         along = np.where(self.row_dir[at], lay["u"], lay["v"])
         del lay["u"], lay["v"]
-        per = self.row_period[at]
-        amp = _ROW_AMP[sidx][crop] * np.clip((per / np.float32(gsd) - 2.0) / 2.0, 0.0, 1.0)
-        rows = np.sin(along * np.float32(2 * np.pi) / per)
-        rows *= amp
+        rows = along * np.float32(2 * np.pi)
+        rows /= self.row_period[at]
+        np.sin(rows, out=rows)
+        rows *= self.amp_tab[at]
         tr = self.tram[at]
-        tl = np.abs(((along + np.float32(3.0)) % tr) - np.float32(0.5) * tr) < max(0.8, 0.6 * gsd)
-        rows -= np.where(tl & (crop < 3) & (sidx != 2), np.float32(0.06), np.float32(0.0))
-        del along, per, amp, tl, tr, crop, at
+        along += np.float32(3.0)
+        along %= tr
+        tr *= np.float32(0.5)
+        along -= tr
+        tl = np.abs(along, out=along) < max(0.8, 0.6 * gsd)
+        rows -= np.where(tl, self.tram_tab[at], np.float32(0.0))
+        del along, tl, tr, at
         shade = self.patch_a.rows(a, b)
         shade *= np.float32(0.045)
         shade += np.float32(0.04) * self.patch_l.rows(a, b)
