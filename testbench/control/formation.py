@@ -140,9 +140,14 @@ class FormationLaw:
             v[:2] *= self.p.max_speed_mps / h
         return v
 
-    def status(self, t_s: float, pos: np.ndarray, airspeed_cmd: float = float("nan"), bank: float = float("nan")) -> GuidanceStatus:
-        target = np.asarray(pos, float) + self.error_ned_m
-        return GuidanceStatus(t_s=t_s, leg_index=self.n_seen, on_leg=self.n_seen > 0, alt_cmd_m=float(-target[2]),
+    def status(self, t_s: float, pos: np.ndarray, airspeed_cmd: float = float("nan"), bank: float = float("nan"),
+               error_ned_m: np.ndarray | None = None, n_seen: int | None = None) -> GuidanceStatus:
+        """GuidanceStatus: target_ned_m = the slot point this vehicle estimates (own position +
+        slot error), leg_index = number of neighbours used, on_leg = at least one."""
+        err = self.error_ned_m if error_ned_m is None else error_ned_m
+        n = self.n_seen if n_seen is None else n_seen
+        target = np.asarray(pos, float) + err
+        return GuidanceStatus(t_s=t_s, leg_index=n, on_leg=n > 0, alt_cmd_m=float(-target[2]),
                               airspeed_cmd_mps=airspeed_cmd, target_ned_m=tuple(float(x) for x in target), bank_cmd_rad=bank)
 
 
@@ -174,6 +179,7 @@ class FormationFollower(MultirotorController):
         self.law = FormationLaw(params, ctx.vehicle_id)
         self._v_cmd = np.zeros(3)
         self._fstatus = GuidanceStatus(t_s=0.0)
+        self._fstatus_inputs: tuple | None = None
 
     def _velocity_command(self, pos: np.ndarray) -> np.ndarray:  # called by the cascade
         return self._v_cmd
@@ -184,10 +190,16 @@ class FormationFollower(MultirotorController):
             self._prev_pt = np.asarray(estimate.pos_ned_m, float).copy()
         self._yaw_sp = self.law.course
         cmd = super().update(t_s, estimate, reference)
-        self._fstatus = self.law.status(t_s, estimate.pos_ned_m, bank=self._status.bank_cmd_rad)
+        # Built only when asked (at the record rate), like the cascade's own status.
+        self._fstatus_inputs = (t_s, np.array(estimate.pos_ned_m, float), self.law.error_ned_m.copy(), self.law.n_seen)
         return cmd
 
     def status(self) -> GuidanceStatus:
+        if self._fstatus_inputs is not None:
+            t_s, pos, err, n_seen = self._fstatus_inputs
+            bank = super().status().bank_cmd_rad
+            self._fstatus = self.law.status(t_s, pos, bank=bank, error_ned_m=err, n_seen=n_seen)
+            self._fstatus_inputs = None
         return self._fstatus
 
 
