@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import logging
 import zlib
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -23,13 +24,14 @@ from testbench.core.interfaces import BuildContext, NavigationAid
 from testbench.core.messages import NavEstimate, UwbRange
 from testbench.core.registry import ParamsModel, build, register
 from testbench.core.rotations import quat_to_dcm
+from testbench.navigation.relative.detectors import LedDetector
 from testbench.navigation.relative.diagnostics import RelnavDiagnostics, id_check
 from testbench.navigation.relative.frames import camera_model, frame_camera_name, frame_parts, is_camera_frame
 from testbench.navigation.relative.geometry import project_relative, relative_from_bearing_range, undistort_normalized
 from testbench.navigation.relative.neighbour_filter import FilterSettings, NeighbourFilter, initial_covariance
 from testbench.navigation.relative.regions import detect_regions, merge_rois, roi_around
 from testbench.navigation.relative.tracking import Tracker, TrackerSettings
-from testbench.navigation.relative.types import NeighbourTable, RelativeEstimate
+from testbench.navigation.relative.types import Detection, NeighbourTable, RelativeEstimate
 
 log = logging.getLogger(__name__)
 
@@ -87,7 +89,8 @@ class RelnavAid(NavigationAid):
     (a neighbour whose bearings were rejected this many times in a row, or whose ranges were
     rejected filter.max_consecutive_rejects times in a row, restarts from the next bearing of a
     track with a decoded ID and the median of the recent ranges),
-    log_rate_hz (rows of table "relnav"), seed (oracle noise when no rng is injected), roi,
+    log_rate_hz (rows of table "relnav"), led_reader (params of the LED detector that reads
+    the blink level inside boxes from detectors without LED output, e.g. the CNN), seed (oracle noise when no rng is injected), roi,
     filter, tracker.
     """
 
@@ -104,6 +107,7 @@ class RelnavAid(NavigationAid):
         assoc_max_sigma_m: float = pydantic.Field(1.0, gt=0)
         reset_after_rejects: int = pydantic.Field(5, ge=1)
         log_rate_hz: float = pydantic.Field(2.0, gt=0)
+        led_reader: dict = {}
         seed: int = 0
         roi: RoiParams = RoiParams()
         filter: FilterParams = FilterParams()
@@ -134,6 +138,8 @@ class RelnavAid(NavigationAid):
         if rng is None:
             rng = np.random.default_rng(np.random.SeedSequence([params.seed, zlib.crc32(self.self_id.encode())]))
         self.detector = build("detector", params.detector.type, params.detector.params, "relnav.detector", ctx=ctx, rng=rng)
+        # Detectors that give boxes only (the CNN) get their LED level read inside each box.
+        self.led_reader = LedDetector(LedDetector.Params(**params.led_reader))
         tp = params.tracker
         ts = TrackerSettings(n_init=tp.n_init, max_misses=tp.max_misses, gate_prob=tp.gate_prob, id_confidence=tp.id_confidence,
                              p_chip=tp.p_chip, accel_px_s2=tp.accel_px_s2, search_phase=tp.search_phase)
@@ -194,7 +200,8 @@ class RelnavAid(NavigationAid):
             rois = None
             if part.full and not full_due:
                 rois = self._track_rois(name, t)
-            dets.extend(detect_regions(self.detector, part.image, rois, part.origin_uv, part.truths))
+            found = detect_regions(self.detector, part.image, rois, part.origin_uv, part.truths)
+            dets.extend(self._with_led_level(d, part) if d.led_level is None else d for d in found)
             truths.extend(part.truths)
         self.counters["frames"] += 1
         self.counters["detections"] += len(dets)
@@ -246,6 +253,20 @@ class RelnavAid(NavigationAid):
             self._next_log_t = t + 1.0 / self.params.log_rate_hz
             diag.table = self.controller_input(t)
         return diag
+
+    def _with_led_level(self, det, part) -> "Detection":
+        """The detection with led_level read by the LED reader inside its box (+3 px)."""
+        u0, v0, u1, v1 = det.bbox_px
+        ou, ov = part.origin_uv
+        h, w = part.image.shape[:2]
+        a0, b0 = max(int(u0) - 3 - ou, 0), max(int(v0) - 3 - ov, 0)
+        a1, b1 = min(int(np.ceil(u1)) + 4 - ou, w), min(int(np.ceil(v1)) + 4 - ov, h)
+        if a1 <= a0 or b1 <= b0:
+            return det
+        found = self.led_reader.detect(part.image[b0:b1, a0:a1])
+        if not found:
+            return det
+        return replace(det, led_level=float(sum(d.led_level for d in found)))
 
     def _start_filter(self, peer, t, cam, mount, R_nb, centre_px, att_sigma) -> NeighbourFilter | None:
         recent = [r for (tr, r) in self.last_range.get(peer, ()) if t - tr <= self.params.range_max_age_s]

@@ -33,3 +33,32 @@ def test_oracle_pipeline_and_registration():
     e = np.asarray(res.errors_m)
     assert np.isfinite(e).all() and e.max() < 0.6
     assert res.counters["id_wrong"] == 0
+
+
+class _BoxOnly:
+    """A detector that reports boxes without LED information (as the CNN does)."""
+
+    def __init__(self, inner):
+        self.inner = inner
+
+    def detect(self, image):
+        from dataclasses import replace
+
+        return [replace(d, led_level=None, led_px=np.zeros((0, 2))) for d in self.inner.detect(image)]
+
+
+@pytest.mark.slow
+def test_box_only_detector_gets_led_levels_read_in_its_boxes(monkeypatch):
+    from testbench.navigation.relative import aid as aid_mod
+    from testbench.navigation.relative.detectors import LedDetector
+
+    orig = aid_mod.RelnavAid.__init__
+
+    def init(self, *a, **k):
+        orig(self, *a, **k)
+        self.detector = _BoxOnly(LedDetector(LedDetector.Params(data_hue_deg=0.0)))
+
+    monkeypatch.setattr(aid_mod.RelnavAid, "__init__", init)
+    res = simulate_relnav(OFFSETS[:2], duration_s=3.5, width_px=960, height_px=540, cameras=("front", "right"),
+                          aid_params={"led_reader": {"data_hue_deg": 0.0}})
+    assert sorted(res.table) == ["n0", "n1"] and res.counters["id_wrong"] == 0
