@@ -55,12 +55,12 @@ class Mixer:
         yaw = [row[3] * n_nm for row in rows]
         base_rp = [b + r for b, r in zip(base, rp)]
         t = [b + y for b, y in zip(base_rp, yaw)]
-        if all(0.0 <= x <= hi for x in t):
+        if _all_within(t, 0.0, hi):
             return t
         # Scale the yaw part, then the roll/pitch part, into the feasible box.
         k_yaw = _max_scale(base_rp, yaw, hi)
         t = [b + k_yaw * y for b, y in zip(base_rp, yaw)]
-        if all(-1e-9 <= x <= hi + 1e-9 for x in t):
+        if _all_within(t, -1e-9, hi + 1e-9):
             return [_clip(x, 0.0, hi) for x in t]
         k_rp = _max_scale(base, rp, hi)
         return [_clip(b + k_rp * r, 0.0, hi) for b, r in zip(base, rp)]
@@ -69,6 +69,14 @@ class Mixer:
         """Normalised motor commands in [0, 1] (thrust / T_max)."""
         hi = self.max_thrust_n
         return tuple(t / hi for t in self.allocate_floats(thrust_n, moments_b_nm))
+
+
+def _all_within(values: list[float], lo: float, hi: float) -> bool:
+    """lo <= v <= hi for every v (False for nan)."""
+    for v in values:
+        if not lo <= v <= hi:
+            return False
+    return True
 
 
 def _clip(x: float, lo: float, hi: float) -> float:

@@ -44,6 +44,10 @@ def _floats(v) -> list[float]:
     return v.tolist() if isinstance(v, np.ndarray) else [float(x) for x in v]
 
 
+def _clip(x: float, lo: float, hi: float) -> float:
+    return lo if x < lo else hi if x > hi else x
+
+
 def _wrap_pi(angle_rad: float) -> float:
     """Angle wrapped into [-pi, pi) (scalar core.rotations.wrap_pi)."""
     return (angle_rad + math.pi) % TWO_PI - math.pi
@@ -196,54 +200,69 @@ class MultirotorController(Controller):
     # -- control -------------------------------------------------------------------------
 
     def update(self, t_s: float, estimate: NavEstimate, reference=None) -> RotorCommand:
-        g = self.gains
         dt = 0.0 if self._t_prev is None else max(0.0, t_s - self._t_prev)
         self._t_prev = t_s
         pos = _floats(estimate.pos_ned_m)
-        vel = _floats(estimate.vel_ned_mps)
         roll, pitch, yaw = _floats(estimate.rpy_rad)
-        omega = _floats(estimate.omega_b_rps)
         if self._prev_pt is None:
             self._prev_pt = tuple(pos)
             self._yaw_sp = yaw
-
-        # Velocity loop (PI) -> acceleration command, NED m/s^2.
         v_cmd = self._velocity_command(pos)
-        e_v = [float(v_cmd[i]) - vel[i] for i in range(3)]
-        a_cmd = [g.k_vel * e_v[i] + g.k_vel_i * self._int_v[i] for i in range(3)]
-        # Tilt limit: horizontal acceleration at most g tan(max_tilt) (vertical has priority).
-        a_h = math.hypot(a_cmd[0], a_cmd[1])
-        if a_h > self._accel_h_max_mps2:
-            k = self._accel_h_max_mps2 / a_h
-            a_cmd[0] *= k
-            a_cmd[1] *= k
-        else:
-            self._int_v = tuple(min(max(self._int_v[i] + e_v[i] * dt, -3.0), 3.0) for i in range(3))
+        accel_cmd = self._velocity_loop(v_cmd, _floats(estimate.vel_ned_mps), dt)
+        thrust, rpy_d = self._thrust_and_attitude(accel_cmd, roll, pitch, yaw)
+        moments = self._attitude_and_rate_loops(rpy_d, (roll, pitch, yaw), _floats(estimate.omega_b_rps))
+        cmd = RotorCommand(motors=self.mixer.commands(thrust, moments))
+        self._status_inputs = (t_s, self.index, not self.holding, float(self._prev_pt[0]), float(self._prev_pt[1]),
+                               rpy_d[0], pos[0], pos[1])
+        return cmd
 
-        # Thrust vector: m (a - g) in NED; the body -z axis must point along it.
+    def _velocity_loop(self, v_cmd, vel_ned_mps: list[float], dt: float) -> tuple[float, float, float]:
+        """PI velocity loop: acceleration command (NED, m/s^2) for v_cmd (3,) NED m/s, with the
+        tilt limit on its horizontal part (vertical has priority) and conditional integration."""
+        g = self.gains
+        i_n, i_e, i_d = self._int_v
+        e_n, e_e, e_d = (float(v_cmd[0]) - vel_ned_mps[0], float(v_cmd[1]) - vel_ned_mps[1],
+                         float(v_cmd[2]) - vel_ned_mps[2])
+        a_n, a_e, a_d = g.k_vel * e_n + g.k_vel_i * i_n, g.k_vel * e_e + g.k_vel_i * i_e, g.k_vel * e_d + g.k_vel_i * i_d
+        a_h = math.hypot(a_n, a_e)
+        if a_h > self._accel_h_max_mps2:  # at most g tan(max_tilt) horizontally
+            k = self._accel_h_max_mps2 / a_h
+            a_n *= k
+            a_e *= k
+        else:
+            self._int_v = (_clip(i_n + e_n * dt, -3.0, 3.0), _clip(i_e + e_e * dt, -3.0, 3.0), _clip(i_d + e_d * dt, -3.0, 3.0))
+        return a_n, a_e, a_d
+
+    def _thrust_and_attitude(self, accel_cmd_ned: tuple[float, float, float], roll: float, pitch: float,
+                             yaw: float) -> tuple[float, tuple[float, float, float]]:
+        """(thrust N, attitude setpoint (roll, pitch, yaw) rad) for an acceleration command:
+        the thrust vector is m (a - g) in NED and the body -z axis must point along it; the
+        thrust is its projection on the present body -z axis."""
         m = self.mass_kg
-        f = (m * a_cmd[0], m * a_cmd[1], min(m * (a_cmd[2] - G), -0.2 * m * G))  # always some upward thrust
+        a_n, a_e, a_d = accel_cmd_ned
+        f = (m * a_n, m * a_e, min(m * (a_d - G), -0.2 * m * G))  # always some upward thrust
         z_b = _normalized((-f[0], -f[1], -f[2]))
         x_c = (math.cos(self._yaw_sp), math.sin(self._yaw_sp), 0.0)
         y_b = _normalized(_cross(z_b, x_c))
         x_b = _cross(y_b, z_b)
-        rpy_d = _euler_from_body_axes(x_b, y_b, z_b)
-        z_n = _body_z_axis_ned(roll, pitch, yaw)
-        thrust = max(-(f[0] * z_n[0] + f[1] * z_n[1] + f[2] * z_n[2]), 0.0)  # on the actual thrust axis
+        z_now = _body_z_axis_ned(roll, pitch, yaw)
+        thrust = max(-(f[0] * z_now[0] + f[1] * z_now[1] + f[2] * z_now[2]), 0.0)
+        return thrust, _euler_from_body_axes(x_b, y_b, z_b)
 
-        # Attitude -> body rates (small-angle Euler error, adequate below ~35 deg tilt).
-        w_cmd = (g.k_att * _wrap_pi(rpy_d[0] - roll), g.k_att * _wrap_pi(rpy_d[1] - pitch),
-                 g.k_att_yaw * _wrap_pi(self._yaw_sp - yaw))
-        # Rate loop: M = J k_rate (w_cmd - w) + w x J w (J diagonal).
-        j = self._inertia_diag
-        j_omega = (j[0] * omega[0], j[1] * omega[1], j[2] * omega[2])
-        gyro = _cross(omega, j_omega)
-        moments = tuple(j[i] * (g.k_rate * (w_cmd[i] - omega[i])) + gyro[i] for i in range(3))
-        cmd = RotorCommand(motors=self.mixer.commands(thrust, moments))
-
-        self._status_inputs = (t_s, self.index, not self.holding, float(self._prev_pt[0]), float(self._prev_pt[1]),
-                               rpy_d[0], pos[0], pos[1])
-        return cmd
+    def _attitude_and_rate_loops(self, rpy_d: tuple[float, float, float], rpy: tuple[float, float, float],
+                                 omega_b_rps: list[float]) -> tuple[float, float, float]:
+        """Body moments (N m, FRD): attitude error (small-angle Euler error, adequate below
+        ~35 deg tilt) -> rate command -> M = J k_rate (w_cmd - w) + w x J w (J diagonal)."""
+        g = self.gains
+        w_x, w_y, w_z = omega_b_rps
+        wc_x = g.k_att * _wrap_pi(rpy_d[0] - rpy[0])
+        wc_y = g.k_att * _wrap_pi(rpy_d[1] - rpy[1])
+        wc_z = g.k_att_yaw * _wrap_pi(self._yaw_sp - rpy[2])
+        j_x, j_y, j_z = self._inertia_diag
+        gyro = _cross((w_x, w_y, w_z), (j_x * w_x, j_y * w_y, j_z * w_z))
+        return (j_x * (g.k_rate * (wc_x - w_x)) + gyro[0],
+                j_y * (g.k_rate * (wc_y - w_y)) + gyro[1],
+                j_z * (g.k_rate * (wc_z - w_z)) + gyro[2])
 
     def _guidance_status(self, t_s: float, index: int, on_leg: bool, prev_n: float, prev_e: float, bank_cmd: float,
                          p_n: float, p_e: float) -> GuidanceStatus:
