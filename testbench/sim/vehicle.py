@@ -108,7 +108,10 @@ def build_vehicle(scn: Scenario, v: Vehicle, world: RunWorld, streams: RngStream
     by_name = {s.name: s.sensor for s in sensors}
     onboard = {"reference_map": world.reference_map, "reference_elevation": world.reference_elevation, "same_raster": world.same_raster}
     aids = [
-        registry.build("aid", a.type, a.params, f"{base}.aids[{i}]", ctx=ctx_onboard, sensors=by_name, onboard=onboard)
+        registry.build(
+            "aid", a.type, a.params, f"{base}.aids[{i}]", ctx=ctx_onboard, sensors=by_name, onboard=onboard,
+            rng=streams.generator("vehicle", v.id, "aid", str(i), a.type),
+        )
         for i, a in enumerate(v.aids)
     ]
     mission = None
