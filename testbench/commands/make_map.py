@@ -41,19 +41,16 @@ def register(subparsers) -> None:
 def run(args) -> int:
     import cv2
 
-    from testbench.world.procedural import make_world
-    from testbench.world.procedural.writer import write_world
+    from testbench.world.procedural.world import world_shape
+    from testbench.world.procedural.writer import write_world_streamed
 
     origin = _origin(args.origin_lat_lon)
     t0 = time.perf_counter()
-    rgb, z, valid = make_world(args.terrain, args.size_km, args.gsd_m, args.seed, args.season)
-    t1 = time.perf_counter()
-    img, dem = write_world(args.out, rgb, z, valid, origin, args.gsd_m)
-    k = max(1, max(rgb.shape[:2]) // 1500)
-    cv2.imwrite(os.path.join(args.out, "preview.png"),
-                cv2.resize(rgb, (rgb.shape[1] // k, rgb.shape[0] // k), interpolation=cv2.INTER_AREA)[..., ::-1])
-    t2 = time.perf_counter()
-    print(f"{img} ({rgb.shape[1]}x{rgb.shape[0]} px, {args.gsd_m:g} m/px), {dem} "
-          f"(relief {float(z.min()):.1f}..{float(z.max()):.1f} m): generated in {t1 - t0:.1f} s, "
-          f"written in {t2 - t1:.1f} s")
+    img, dem, preview, (z_min, z_max) = write_world_streamed(
+        args.out, args.terrain, args.size_km, args.gsd_m, args.seed, args.season, origin, preview_px=1500
+    )
+    cv2.imwrite(os.path.join(args.out, "preview.png"), preview[..., ::-1])
+    h, w = world_shape(args.terrain, args.size_km, args.gsd_m)
+    print(f"{img} ({w}x{h} px, {args.gsd_m:g} m/px), {dem} (relief {z_min:.1f}..{z_max:.1f} m): "
+          f"generated and written in {time.perf_counter() - t0:.1f} s")
     return 0

@@ -76,7 +76,7 @@ def default_cache_dir() -> str:
 
 def world_dir(spec: ProceduralSpec, origin: GeodeticOrigin, cache_dir=None) -> str:
     """Cache folder of a spec at an origin (name readable, hash for the exact key)."""
-    key = f"{spec.canonical()}|{origin.lat_rad:.12f}|{origin.lon_rad:.12f}|{origin.alt_m:.4f}|v1"
+    key = f"{spec.canonical()}|{origin.lat_rad:.12f}|{origin.lon_rad:.12f}|{origin.alt_m:.4f}|v2"
     h = hashlib.sha256(key.encode()).hexdigest()[:12]
     name = f"{spec.terrain}-seed{spec.seed}-{spec.season}-{spec.size_km:g}km-{spec.gsd_m:g}m-{h}"
     return os.path.join(os.fspath(cache_dir) if cache_dir else default_cache_dir(), name)
@@ -84,16 +84,15 @@ def world_dir(spec: ProceduralSpec, origin: GeodeticOrigin, cache_dir=None) -> s
 
 def ensure_world(spec: ProceduralSpec, origin: GeodeticOrigin, cache_dir=None) -> tuple[str, str]:
     """Generate the world files if absent; returns (imagery_path, elevation_path)."""
-    from testbench.world.procedural import make_world
-    from testbench.world.procedural.writer import write_world
+    from testbench.world.procedural.writer import write_world_streamed
 
     d = world_dir(spec, origin, cache_dir)
     img, dem = os.path.join(d, "imagery.tif"), os.path.join(d, "elevation.tif")
     if os.path.exists(img) and os.path.exists(dem):
         return img, dem
     log.info("generating procedural world %s into %s", spec.canonical(), d)
-    rgb, z, valid = make_world(spec.terrain, spec.size_km, spec.gsd_m, spec.seed, spec.season)
-    write_world(d, rgb, z, valid, origin, spec.gsd_m)  # elevation first, imagery last
+    # Band by band: a large world never sits whole in memory (files appear atomically).
+    write_world_streamed(d, spec.terrain, spec.size_km, spec.gsd_m, spec.seed, spec.season, origin)
     return img, dem
 
 
