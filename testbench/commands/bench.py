@@ -17,11 +17,13 @@ log = logging.getLogger(__name__)
 # (group, module with run_benchmarks() -> dict[str, float])
 SUITES = (
     ("engine", "testbench.sim.bench"),
+    ("control", "testbench.control.bench"),
     ("sensors", "testbench.sensors.bench"),
     ("render", "testbench.sensors.camera.bench"),
     ("world", "testbench.world.bench"),
     ("nav", "testbench.navigation.ins.bench"),
     ("ismn", "testbench.navigation.ismn.bench"),
+    ("relnav", "testbench.navigation.relative.bench"),
     ("scenarios", "testbench.batch.bench"),
 )
 
