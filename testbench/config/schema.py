@@ -104,7 +104,8 @@ class Vehicle(pydantic.BaseModel):
     aids: list[ComponentSpec] = Field(default_factory=list)
     control: ComponentSpec
     rates: Rates = Field(default_factory=Rates)
-    colour_rgb: tuple[int, int, int] = (200, 200, 210)
+    colour_rgb: tuple[int, int, int] = Field(default=(60, 60, 66), description="body colour seen by other vehicles' cameras")
+    led_rate_hz: float = Field(default=10.0, gt=0, description="chip rate of the LED ID code")
 
     @field_validator("sensors")
     @classmethod

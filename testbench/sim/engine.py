@@ -142,7 +142,7 @@ class Engine:
                 continue
             truth = v.dynamics.truth()
             if view is None:
-                view = TickWorldView(self.world, t_s, v.id, truths)
+                view = TickWorldView(self.world, t_s, v.id, truths, self._render_requests(v, t_s))
             m = slot.sensor.measure(truth, view, slot.rng)
             if m is None:
                 continue
@@ -199,6 +199,16 @@ class Engine:
             row["truth_roll_rad"] = float(me.rpy_rad[0])
         if "truth_height_agl_m" in row:
             row["truth_height_agl_m"] = float(me.height_agl_m)
+
+    @staticmethod
+    def _render_requests(v: VehicleRuntime, t_s: float) -> dict[str, list] | None:
+        """Regions the vehicle's aids want its cameras to render now (None: no wishes)."""
+        merged: dict[str, list] | None = None
+        for aid in v.aids:
+            fn = getattr(aid, "render_requests", None)
+            if fn is not None:
+                merged = {**(merged or {}), **fn(t_s)}
+        return merged
 
     @staticmethod
     def _reference(v: VehicleRuntime, t_s: float) -> Any:

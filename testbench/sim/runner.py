@@ -65,6 +65,12 @@ def build_engine(
     streams = RngStreams(scn.seed if seed is None else seed)
     world = RunWorld(scn.world, origin_of(loaded))
     vehicles = [build_vehicle(scn, v, world, streams, str(loaded.directory)) for v in scn.vehicles]
+    from testbench.sim.appearance import default_look
+
+    world.looks = {
+        rt.id: default_look(i, rt.kind, rt.dynamics.aircraft_meta, rt.spec.colour_rgb, rt.spec.led_rate_hz)
+        for i, rt in enumerate(vehicles)
+    }
     record_every = decimation(scn.record_rate_hz, scn.physics_rate_hz, "record_rate_hz")
     recorder = Recorder()
     engine = Engine(

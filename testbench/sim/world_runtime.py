@@ -42,6 +42,9 @@ class RunWorld:
         self._elevation = None
         self._reference_elevation = None
         self.obstacles = tuple(world.obstacles)
+        self.looks: dict[str, Any] = {}  # vehicle id -> sim.appearance.Look (set by the runner)
+        self._imagery_windows: dict[int, Any] = {}
+        self._elevation_window = None
 
     @property
     def same_raster(self) -> bool:
@@ -85,6 +88,49 @@ class RunWorld:
                 self._reference_elevation = open_elevation(spec, self.origin, self.cache_dir)
         return self._reference_elevation
 
+    # Cameras ask for imagery under their footprint at every frame. Reading a GeoTIFF window
+    # costs ~100 ms, so the world keeps one large window per power-of-two ground sample and
+    # serves every camera from it while their footprints stay inside it.
+    _WHOLE_MAP_MAX_PX = 5000
+    _MARGIN = 0.75
+
+    def imagery_for(self, bounds_ne_m, gsd_m: float):
+        """LocalRaster of the truth imagery covering bounds (n0, n1, e0, e1) at about gsd_m
+        (the next finer power-of-two multiple of the map's own sample); None without imagery."""
+        src = self.imagery()
+        if src is None:
+            return None
+        native = float(getattr(src, "native_gsd_m", 1.0))
+        level = max(0, int(np.floor(np.log2(max(gsd_m, native) / native) + 1e-9)))
+        gsd = native * 2.0**level
+        n0, n1, e0, e1 = bounds_ne_m
+        cached = self._imagery_windows.get(level)
+        if cached is not None and _contains(cached, n0, n1, e0, e1):
+            return cached
+        fp = src.footprint
+        if max(fp.north_max_m - fp.north_min_m, fp.east_max_m - fp.east_min_m) / gsd <= self._WHOLE_MAP_MAX_PX:
+            n0, n1, e0, e1 = fp.north_min_m, fp.north_max_m, fp.east_min_m, fp.east_max_m
+        else:
+            m = self._MARGIN * max(n1 - n0, e1 - e0)
+            n0, n1, e0, e1 = n0 - m, n1 + m, e0 - m, e1 + m
+        raster = src.read_local(n0, n1, e0, e1, gsd)
+        self._imagery_windows[level] = raster
+        return raster
+
+    def elevation_for(self, bounds_ne_m):
+        """LocalRaster of terrain heights over bounds, or None on flat ground."""
+        elev = self.elevation()
+        if elev is None or not hasattr(elev, "read_local") or type(elev).__name__ == "FlatElevation":
+            return None
+        n0, n1, e0, e1 = bounds_ne_m
+        cached = self._elevation_window
+        if cached is not None and _contains(cached, n0, n1, e0, e1):
+            return cached
+        gsd = float(getattr(elev, "native_gsd_m", 10.0) or 10.0)
+        m = self._MARGIN * max(n1 - n0, e1 - e0)
+        self._elevation_window = elev.read_local(n0 - m, n1 + m, e0 - m, e1 + m, gsd)
+        return self._elevation_window
+
     def terrain_fn(self) -> Callable[[float, float], float] | None:
         """Scalar terrain height (m above the origin altitude) for the dynamics, or None."""
         elev = self.elevation()
@@ -98,6 +144,11 @@ class RunWorld:
         if elev is None:
             return np.zeros(np.broadcast(np.asarray(north_m), np.asarray(east_m)).shape)
         return elev.height_m(np.asarray(north_m, float), np.asarray(east_m, float))
+
+
+def _contains(r, n0: float, n1: float, e0: float, e1: float) -> bool:
+    h, w = r.shape
+    return r.north0_m >= n1 and r.north0_m - h * r.gsd_m <= n0 and r.east0_m <= e0 and r.east0_m + w * r.gsd_m >= e1
 
 
 class _LazyTruths(Mapping):
@@ -119,14 +170,38 @@ class _LazyTruths(Mapping):
 class TickWorldView:
     """What one vehicle's sensors may see at one tick (satisfies core.interfaces.WorldView)."""
 
-    def __init__(self, world: RunWorld, t_s: float, self_id: str, truths: Mapping[str, TruthState], extras: dict[str, Any] | None = None):
+    def __init__(self, world: RunWorld, t_s: float, self_id: str, truths: Mapping[str, TruthState], requests: dict[str, list] | None = None):
         self.world = world
         self.t_s = t_s
         self.origin = world.origin
         self.self_id = self_id
         self.vehicles = truths
         self.obstacles = world.obstacles
-        self.extras = extras or {}
+        self._requests = requests
 
     def terrain_height_m(self, north_m, east_m):
         return self.world.terrain_height_m(north_m, east_m)
+
+    def imagery_for(self, bounds_ne_m, gsd_m: float):
+        return self.world.imagery_for(bounds_ne_m, gsd_m)
+
+    def elevation_for(self, bounds_ne_m):
+        return self.world.elevation_for(bounds_ne_m)
+
+    def appearances(self, t_s: float):
+        """The other vehicles as cameras see them now (true pose, LED states of the instant)."""
+        from testbench.core.rotations import quat_to_dcm
+
+        out = []
+        for vid, look in self.world.looks.items():
+            if vid == self.self_id:
+                continue
+            tr = self.vehicles[vid]
+            out.append(look.appearance(vid, tr.pos_ned_m, quat_to_dcm(tr.q_nb_wxyz), t_s))
+        return out
+
+    def render_requests(self, camera_name: str):
+        """Regions an aid asked this camera to render (None: the whole frame)."""
+        if self._requests is None:
+            return None
+        return self._requests.get(camera_name)

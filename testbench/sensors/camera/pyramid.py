@@ -86,6 +86,24 @@ class DemSampler:
         self.slope_max = float(max(np.hypot(gx, gy).max(initial=0.0), np.hypot(fx, fy), 1e-3))
         self.raster = dem
         self.map_from_ne = np.linalg.inv(dem.affine_ne_from_colrow())
+        # Max-filtered heights for empty-space skipping: max_maps[j][r, c] bounds the terrain
+        # (bilinear included) within 2^j cells of cell (r, c) in both directions.
+        self.max_maps = []
+        big = max(self.height.shape)
+        j = 0
+        while (1 << j) <= big and j <= 9:
+            radius = (1 << j) + 1
+            kernel = np.ones((2 * radius + 1, 2 * radius + 1), np.uint8)
+            self.max_maps.append(cv2.dilate(self.height, kernel, borderType=cv2.BORDER_REPLICATE))
+            j += 1
+
+    def cell_index(self, north_m: np.ndarray, east_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Nearest cell (row, col), clamped into the raster (the terrain extends its edges)."""
+        A = self.map_from_ne
+        H, W = self.height.shape
+        col = np.clip(np.rint(A[0, 0] * east_m + A[0, 2]), 0, W - 1).astype(np.intp)
+        row = np.clip(np.rint(A[1, 1] * north_m + A[1, 2]), 0, H - 1).astype(np.intp)
+        return row, col
 
     def height_at(self, north_m: np.ndarray, east_m: np.ndarray) -> np.ndarray:
         """Bilinear terrain height (m, up) at NED north/east; edges extend outwards."""

@@ -27,6 +27,9 @@ from testbench.sensors.camera.pyramid import DemSampler, RasterPyramid
 from testbench.sensors.camera.sky import apply_sky_and_haze, coarse_axes, haze_alpha, upsample
 
 _MAX_ITER = 400
+# Minimum step grows with distance (a share of the range): far terrain is seen at a coarse
+# footprint, and grazing rays over rough ground would otherwise creep half a cell at a time.
+_REL_STEP = 0.02
 _REFINE_ITER = 6
 _DEPTH_RATIO = 1.15
 _OUT = -1.0e5  # map coordinate of "no ground": far outside any map
@@ -37,6 +40,11 @@ def cast_rays(dem: DemSampler, centre_ned_m, dirs_ned: np.ndarray, near_m: float
 
     Returns hit (n,) bool and t (n,) (nan where the ray meets no terrain before far_m).
     Outside the raster the terrain continues its edge heights.
+
+    Each iteration takes the longest step known to be safe: the Lipschitz step, or a jump of
+    2^j DEM cells horizontally when the ray at the far end of the jump is still above the
+    max-filtered terrain around the current cell (empty-space skipping); failing both, half a
+    cell. A step that ends under the terrain brackets the crossing, refined by false position.
     """
     C = np.asarray(centre_ned_m, float)
     up0 = -C[2]
@@ -53,6 +61,8 @@ def cast_rays(dem: DemSampler, centre_ned_m, dirs_ned: np.ndarray, near_m: float
     t_stop = np.minimum(t_stop, far_m)
     rate = dd + dem.slope_max * dh           # fastest closing speed of the gap per unit t
     min_step = 0.5 * dem.raster.gsd_m / dn
+    levels = list(range(0, len(dem.max_maps), 2))  # jumps of 1, 4, 16, 64, 256 cells
+    jump_m = dem.raster.gsd_m * (2.0 ** np.array(levels, float))[:, None]  # (J, 1)
     hit = np.zeros(n, bool)
     t_hit = np.full(n, np.nan)
 
@@ -72,7 +82,18 @@ def cast_rays(dem: DemSampler, centre_ned_m, dirs_ned: np.ndarray, near_m: float
     for _ in range(_MAX_ITER):
         if idx.size == 0:
             break
-        step = np.maximum(g / rate[idx], min_step[idx])
+        step = np.maximum(g / rate[idx], min_step[idx] + _REL_STEP * t)
+        # Empty-space skipping over the max-filtered terrain.
+        with np.errstate(divide="ignore", invalid="ignore"):
+            dt_j = jump_m / dh[idx]                          # (J, m) t to go 2^j cells
+            pn = C[0] + t * d[idx, 0]
+            pe = C[1] + t * d[idx, 1]
+            r, c = dem.cell_index(pn, pe)
+            up_end = up0 - (t + dt_j) * dd[idx]
+            bounds = np.stack([dem.max_maps[j][r, c] for j in levels])
+            ok = (up_end > bounds) & np.isfinite(dt_j)
+            jump = np.where(ok, dt_j, 0.0).max(axis=0)
+        step = np.maximum(step, jump)
         t_new = np.minimum(t + step, t_stop[idx])
         stuck = t_new <= t  # already at t_stop: no terrain on this ray
         g_new = gap(idx, t_new)

@@ -1,0 +1,120 @@
+"""The camera renderer: what a camera at a true pose sees of a mapped world.
+
+`render(camera, mount, pos_ned_m, R_nb, imagery, elevation, ...)` is a pure function (caches
+aside: map pyramids per raster, lens maps per camera) with no engine dependency.
+
+Flat ground (elevation None): exact plane homography, mip-mapped cv2.warpPerspective of an
+ideal pinhole image, then lens distortion by a cached cv2.remap. Relief: rays cast against the
+elevation raster through the full lens model, cv2.remap of the map. Then other vehicles, then
+the effects (motion blur, vignetting, gain, noise).
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import cv2
+import numpy as np
+
+from testbench.core.camera_geometry import CameraMount, PinholeCamera, camera_pose_ned
+from testbench.sensors.camera.effects import apply_effects
+from testbench.sensors.camera.flat import render_plane
+from testbench.sensors.camera.lens import distortion_remap, normalized_grid, roi_camera
+from testbench.sensors.camera.pyramid import dem_sampler_for, pyramid_for
+from testbench.sensors.camera.relief import render_relief
+from testbench.sensors.camera.types import RenderedFrame, RenderOptions, VehicleAppearance
+from testbench.sensors.camera.vehicles import draw_vehicles
+from testbench.world.raster import LocalRaster
+
+_DEFAULT_OPTIONS = RenderOptions()
+
+
+def _check_roi(camera: PinholeCamera, roi) -> tuple[int, int, int, int]:
+    if roi is None:
+        return (0, 0, camera.width_px, camera.height_px)
+    u0, v0, u1, v1 = (int(round(x)) for x in roi)
+    u0, v0 = max(u0, 0), max(v0, 0)
+    u1, v1 = min(u1, camera.width_px), min(v1, camera.height_px)
+    if u1 <= u0 or v1 <= v0:
+        raise ValueError(f"roi {roi} does not overlap the {camera.width_px}x{camera.height_px} frame")
+    return (u0, v0, u1, v1)
+
+
+def _flat(cam: PinholeCamera, C, R_nc, pyr, ground_down_m: float, opts, want_points: bool):
+    """Flat-ground render of `cam` (lens distortion included)."""
+    if not cam.has_distortion:
+        rgb, valid, sky, view = render_plane(cam, C, R_nc, pyr, ground_down_m, opts)
+    else:
+        dr = distortion_remap(cam)
+        rgb_i, valid_i, sky_i, view = render_plane(dr.ideal, C, R_nc, pyr, ground_down_m, opts)
+        rgb = cv2.remap(rgb_i, dr.map1, dr.map2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
+        flags = valid_i.view(np.uint8) | (sky_i.view(np.uint8) << 1)
+        flags = cv2.remap(flags, dr.map1, dr.map2, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT)
+        valid, sky = (flags & 1).astype(bool), (flags & 2).astype(bool)
+    # Camera depth of the ground at a pixel, for hiding vehicles below the horizon of terrain.
+    r_down = np.asarray(R_nc, float)[2]  # down component of a camera-frame ray
+    h = view.h_m
+
+    def ground_depth(u: float, v: float) -> float:
+        x, y = normalized_grid(cam)[int(round(v)), int(round(u))] if cam.has_distortion else (
+            (u - cam.cx) / cam.fx, (v - cam.cy) / cam.fy)
+        w = r_down @ np.array([x, y, 1.0])
+        return h / w if (h > 0 and w * opts.far_m > h) else np.inf
+
+    points = None
+    if want_points:
+        xy = normalized_grid(cam)
+        d = np.concatenate([xy, np.ones(xy.shape[:-1] + (1,))], axis=-1) @ np.asarray(R_nc).T
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = h / d[..., 2]
+        points = np.asarray(C, float) + t[..., None] * d
+        points[sky | ~(t > 0)] = np.nan
+    return rgb, valid, sky, ground_depth, points
+
+
+def render(camera: PinholeCamera, mount: CameraMount, pos_ned_m, R_nb, imagery: LocalRaster,
+           elevation: LocalRaster | None = None, *, vehicles: Sequence[VehicleAppearance] = (),
+           rng: np.random.Generator | None = None, want_ground_points: bool = False,
+           roi: tuple[int, int, int, int] | None = None,
+           options: RenderOptions = _DEFAULT_OPTIONS) -> RenderedFrame:
+    """Render what `camera`, mounted by `mount` on a vehicle at pos_ned_m (3,) NED m with
+    attitude R_nb (3, 3, body->NED), sees of `imagery` over `elevation` (None: flat ground at
+    options.ground_height_m).
+
+    vehicles: other vehicles to draw (with their LED states); rng: noise generator (no noise
+    without it); want_ground_points: also return each pixel's NED ground point;
+    roi: (u0, v0, u1, v1) full-frame pixel box to render (u1, v1 exclusive), for detectors
+    that look around predicted tracks. Returns a RenderedFrame; parts of the view that the
+    map does not cover are black, masked out of `valid` and counted in `offmap_fraction`.
+    """
+    roi_box = _check_roi(camera, roi)
+    cam = camera if roi is None else roi_camera(camera, roi_box)
+    C, R_nc = camera_pose_ned(pos_ned_m, R_nb, mount)
+    pyr = pyramid_for(imagery)
+    points = None
+    if elevation is None:
+        rgb, valid, sky, ground_depth_roi, points = _flat(
+            cam, C, R_nc, pyr, -float(options.ground_height_m), options, want_ground_points)
+    else:
+        dem = dem_sampler_for(elevation)
+        rgb, valid, sky, points_fn, (t2, k) = render_relief(cam, C, R_nc, pyr, dem, options)
+
+        def ground_depth_roi(u: float, v: float) -> float:
+            return float(t2[min(int(round(v / k)), t2.shape[0] - 1), min(int(round(u / k)), t2.shape[1] - 1)])
+
+        if want_ground_points:
+            points = points_fn()
+    u0, v0 = roi_box[0], roi_box[1]
+    truths = ()
+    if vehicles:
+        def ground_depth(u: float, v: float) -> float:  # full-frame pixel -> region pixel
+            ur = min(max(u - u0, 0), cam.width_px - 1)
+            vr = min(max(v - v0, 0), cam.height_px - 1)
+            return ground_depth_roi(ur, vr)
+
+        truths = draw_vehicles(rgb, camera, (u0, v0), C, R_nc, vehicles, options.near_m,
+                               options.far_m, ground_depth)
+    rgb = apply_effects(rgb, cam, options, rng)
+    ground = ~sky
+    offmap = float(np.count_nonzero(ground & ~valid)) / valid.size
+    return RenderedFrame(rgb, valid, sky, offmap, truths, None if roi is None else roi_box, points)

@@ -1,0 +1,267 @@
+"""The camera as a sensor in the loop: renders what it sees from the TRUE pose at its rate.
+
+`CameraSensor` (registered as sensor type "camera") holds the camera model of the paper's
+table 1 (size, intrinsics or field of view, lens distortion, noise, clipping, mounting angles
+and lever arm, frame rate, exposure/gain, vignetting, motion blur). At each frame it asks the
+world for the imagery (and elevation) under its footprint at a suitable ground sample, the
+other vehicles in view with their LED states, and which regions to render (a relative-
+navigation aid may ask for regions around its tracks only); then it calls the pure renderer.
+
+The world object it reads is the engine's tick view (`CameraWorld` protocol below).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+from typing import Any, Protocol, Sequence
+
+import numpy as np
+import pydantic
+
+from testbench.core.camera_geometry import CameraMount, PinholeCamera, camera_pose_ned, mount_rotation
+from testbench.core.errors import InputError
+from testbench.core.interfaces import BuildContext, Sensor
+from testbench.core.messages import TruthState
+from testbench.core.registry import ParamsModel, register
+from testbench.core.rotations import quat_to_dcm
+from testbench.sensors.camera.render import render
+from testbench.sensors.camera.types import RenderedFrame, RenderOptions, VehicleAppearance, VehicleTruth
+from testbench.world.raster import LocalRaster
+
+log = logging.getLogger(__name__)
+
+
+class CameraWorld(Protocol):
+    """What the camera needs from the world at a tick (the engine's TickWorldView)."""
+
+    t_s: float
+    self_id: str
+
+    def imagery_for(self, bounds_ne_m: tuple[float, float, float, float], gsd_m: float) -> LocalRaster | None:
+        """Imagery covering (north_min, north_max, east_min, east_max) at about gsd_m."""
+
+    def elevation_for(self, bounds_ne_m: tuple[float, float, float, float]) -> LocalRaster | None:
+        """Terrain heights (m above the origin) over the bounds, None on flat ground."""
+
+    def appearances(self, t_s: float) -> Sequence[VehicleAppearance]:
+        """Every other vehicle as a camera would see it now (LED states set)."""
+
+    def render_requests(self, camera_name: str) -> list[tuple[int, int, int, int]] | None:
+        """Regions to render for this camera (None: the whole frame; []: nothing)."""
+
+
+@dataclass(frozen=True)
+class CameraFrame:
+    """One camera frame (the message a camera sensor produces).
+
+    t_s; camera_name; image (H, W, 3) uint8 RGB of the whole frame, or None when only regions
+    were rendered; regions: the rendered parts (RenderedFrame, each with its roi and the truth of
+    the vehicles it shows); vehicles: truth annotations (full-frame pixels) of the other vehicles;
+    offmap_fraction: share of the rendered pixels that look at ground off the map (no-data).
+    """
+
+    t_s: float
+    camera_name: str
+    image: np.ndarray | None
+    regions: tuple[RenderedFrame, ...]
+    vehicles: tuple[VehicleTruth, ...]
+    offmap_fraction: float
+
+
+class CameraParams(ParamsModel):
+    """The camera model (paper table 1); angles in degrees, lengths in metres, rates in Hz."""
+
+    rate_hz: float = pydantic.Field(2.0, gt=0)
+    width_px: int = pydantic.Field(1920, ge=16)
+    height_px: int = pydantic.Field(1080, ge=16)
+    hfov_deg: float | None = pydantic.Field(120.0, gt=1, lt=179)
+    fx: float | None = pydantic.Field(None, gt=0)
+    fy: float | None = pydantic.Field(None, gt=0)
+    cx: float | None = None
+    cy: float | None = None
+    k1: float = 0.0
+    k2: float = 0.0
+    k3: float = 0.0
+    p1: float = 0.0
+    p2: float = 0.0
+    noise_mean: float = 0.0
+    noise_std: float = pydantic.Field(2.0, ge=0)
+    near_m: float = pydantic.Field(0.1, gt=0)
+    far_m: float = pydantic.Field(20000.0, gt=0)
+    mount_roll_deg: float = 0.0
+    mount_pitch_deg: float = -90.0
+    mount_yaw_deg: float = 0.0
+    lever_arm_b_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    gain: float = pydantic.Field(1.0, gt=0)
+    vignetting: float = pydantic.Field(0.0, ge=0, le=1)
+    exposure_s: float = pydantic.Field(0.0, ge=0, description="motion blur from body rates over the exposure")
+    haze_visibility_m: float | None = 40000.0
+    max_window_px: int = pydantic.Field(4096, ge=256, description="largest map window side read per frame")
+    render_vehicles: bool = True
+
+    @pydantic.model_validator(mode="after")
+    def _intrinsics(self) -> "CameraParams":
+        if self.fx is None and self.hfov_deg is None:
+            raise ValueError("give hfov_deg or fx (and fy, cx, cy)")
+        return self
+
+
+@register("sensor", "camera")
+class CameraSensor(Sensor):
+    """A camera rendering frames of the world from the vehicle's true pose."""
+
+    Params = CameraParams
+
+    def __init__(self, params: CameraParams, *, ctx: BuildContext, **_: Any):
+        p = params
+        self.params = p
+        self.name = "camera"
+        self.rate_hz = float(p.rate_hz)
+        ratio = ctx.physics_rate_hz / self.rate_hz
+        if abs(ratio - round(ratio)) > 1e-9 * ratio or round(ratio) < 1:
+            raise InputError(f"camera.rate_hz: {self.rate_hz:g} Hz must divide the physics rate {ctx.physics_rate_hz:g} Hz")
+        dist = (p.k1, p.k2, p.p1, p.p2, p.k3)
+        if p.fx is not None:
+            fy = p.fy if p.fy is not None else p.fx
+            cx = p.cx if p.cx is not None else (p.width_px - 1) / 2.0
+            cy = p.cy if p.cy is not None else (p.height_px - 1) / 2.0
+            self.camera = PinholeCamera(p.width_px, p.height_px, p.fx, fy, cx, cy, dist)
+        else:
+            self.camera = PinholeCamera.from_hfov(p.width_px, p.height_px, p.hfov_deg, dist)
+        # Camera -> body from the mounting angles (core.camera_geometry convention).
+        self.mount = CameraMount(mount_rotation(p.mount_roll_deg, p.mount_pitch_deg, p.mount_yaw_deg), np.asarray(p.lever_arm_b_m, float))
+        self._options = RenderOptions(
+            near_m=p.near_m, far_m=p.far_m, noise_mean=p.noise_mean, noise_std=p.noise_std, gain=p.gain,
+            vignetting=p.vignetting, haze_visibility_m=p.haze_visibility_m,
+        )
+        self._last: tuple[float, CameraFrame | None] | None = None
+        self._warned_offmap = False
+        # Unit rays of the frame's border (camera frame), for the ground footprint.
+        self._border_rays_c = _border_rays(self.camera)
+
+    # -- Sensor ---------------------------------------------------------------------------
+    def measure(self, truth: TruthState, world: Any, rng: np.random.Generator) -> CameraFrame | None:
+        if self._last is not None and self._last[0] == truth.t_s:
+            return self._last[1]
+        frame = self._render(truth, world, rng)
+        self._last = (truth.t_s, frame)
+        return frame
+
+    # -- internals ------------------------------------------------------------------------
+    def _render(self, truth: TruthState, world: Any, rng: np.random.Generator) -> CameraFrame | None:
+        R_nb = quat_to_dcm(truth.q_nb_wxyz)  # body -> NED (true attitude)
+        pos = truth.pos_ned_m
+        requests = world.render_requests(self.name) if hasattr(world, "render_requests") else None
+        if requests is not None and len(requests) == 0:
+            return None  # the aid asked for nothing this frame: nothing to render
+        centre, R_nc = camera_pose_ned(pos, R_nb, self.mount)
+        imagery = None
+        elevation = None
+        bounds_gsd = self._footprint(centre, R_nc, world)
+        if bounds_gsd is not None:
+            bounds, gsd = bounds_gsd
+            imagery = world.imagery_for(bounds, gsd)
+            elevation = world.elevation_for(bounds)
+        if imagery is None:  # no imagery in this world (or the camera sees no ground): sky only
+            imagery = _BLANK
+        vehicles = tuple(world.appearances(truth.t_s)) if self.params.render_vehicles and hasattr(world, "appearances") else ()
+        opts = self._options
+        if self.params.exposure_s > 0.0:
+            opts = _with_motion_blur(opts, self.camera, R_nc, truth, self.params.exposure_s)
+        rois = [None] if requests is None else list(requests)
+        parts = []
+        for roi in rois:
+            full = roi is not None and tuple(roi) == (0, 0, self.camera.width_px, self.camera.height_px)
+            parts.append(render(self.camera, self.mount, pos, R_nb, imagery, elevation, vehicles=vehicles, rng=rng,
+                                roi=None if full else roi, options=opts))
+        whole = next((p for p in parts if p.roi is None), None)
+        truths = _merge_truths(parts)
+        n_px = sum(p.valid.size for p in parts)
+        offmap = sum(p.offmap_fraction * p.valid.size for p in parts) / max(n_px, 1)
+        if offmap > 0.5 and not self._warned_offmap:
+            log.warning("camera %s at t=%.1f s: %.0f %% of the view is off the map (no-data)", self.name, truth.t_s, 100 * offmap)
+            self._warned_offmap = True
+        return CameraFrame(truth.t_s, self.name, None if whole is None else whole.image, tuple(parts), truths, offmap)
+
+    def _footprint(self, centre: np.ndarray, R_nc: np.ndarray, world: Any):
+        """NE bounds of the ground the frame can see and the window's ground sample (m/px),
+        or None when no border ray meets the ground within the far plane."""
+        ground_down = -_ground_height(world, centre)
+        h = ground_down - centre[2]  # height above the ground plane (m)
+        if h <= 0:
+            return None
+        d = self._border_rays_c @ R_nc.T  # rays in NED
+        far = self.params.far_m
+        pts = []
+        for ray in d:
+            if ray[2] > 1e-6:
+                t = min(h / ray[2], far)
+            else:  # at or above the horizon: clip at the far plane
+                t = far
+            pts.append(centre[:2] + t * ray[:2])
+        pts = np.asarray(pts)
+        n0, e0 = pts.min(axis=0)
+        n1, e1 = pts.max(axis=0)
+        # Finest useful ground sample: a pixel's footprint straight below (or nearest point).
+        gsd_near = h / max(self.camera.fx, self.camera.fy)
+        extent = max(n1 - n0, e1 - e0)
+        gsd = max(gsd_near, extent / self.params.max_window_px)
+        return (float(n0), float(n1), float(e0), float(e1)), float(gsd)
+
+
+def _ground_height(world: Any, centre: np.ndarray) -> float:
+    try:
+        return float(np.asarray(world.terrain_height_m(np.array([centre[0]]), np.array([centre[1]])))[0])
+    except (AttributeError, TypeError):
+        return 0.0
+
+
+def _border_rays(cam: PinholeCamera, n: int = 8) -> np.ndarray:
+    """(4n, 3) camera-frame rays through the frame border (ideal pinhole, normalised)."""
+    us = np.linspace(0, cam.width_px - 1, n)
+    vs = np.linspace(0, cam.height_px - 1, n)
+    uv = np.concatenate([
+        np.c_[us, np.zeros(n)], np.c_[us, np.full(n, cam.height_px - 1)],
+        np.c_[np.zeros(n), vs], np.c_[np.full(n, cam.width_px - 1), vs],
+    ])
+    rays = np.c_[(uv[:, 0] - cam.cx) / cam.fx, (uv[:, 1] - cam.cy) / cam.fy, np.ones(len(uv))]
+    return rays / np.linalg.norm(rays, axis=1, keepdims=True)
+
+
+def _with_motion_blur(opts: RenderOptions, cam: PinholeCamera, R_nc, truth: TruthState, exposure_s: float) -> RenderOptions:
+    """Image motion over the exposure from the body rates (rotation dominates at altitude)."""
+    from dataclasses import replace
+
+    omega_b = truth.omega_eb_b_rps
+    R_nb = quat_to_dcm(truth.q_nb_wxyz)
+    R_cb = (R_nb.T @ R_nc).T  # body -> camera
+    w = R_cb @ omega_b
+    # A rotation about camera y moves the image along u, about x along v (small angles).
+    du = cam.fx * w[1] * exposure_s
+    dv = -cam.fy * w[0] * exposure_s
+    return replace(opts, motion_blur_px=(float(du), float(dv)))
+
+
+def _merge_truths(parts: Sequence[RenderedFrame]) -> tuple[VehicleTruth, ...]:
+    seen: dict[str, VehicleTruth] = {}
+    for p in parts:
+        for v in p.vehicles:
+            if v.id not in seen or (v.visible and not seen[v.id].visible):
+                seen[v.id] = v
+    return tuple(seen.values())
+
+
+# A 16 x 16 all-no-data raster: the renderer draws sky and black no-data ground over it.
+_BLANK = LocalRaster(np.zeros((16, 16, 3), np.uint8), np.zeros((16, 16), bool), 8.0, -8.0, 1.0)
+
+
+def save_frame_png(frame: CameraFrame, path) -> None:
+    """Write a frame (its whole image, or its first region) as PNG."""
+    import cv2
+
+    img = frame.image if frame.image is not None else (frame.regions[0].image if frame.regions else None)
+    if img is None:
+        return
+    cv2.imwrite(str(path), np.ascontiguousarray(img[..., ::-1]))
