@@ -71,7 +71,19 @@ def parse_yaml(text: str, where: str) -> dict[str, Any]:
         raise InputError(f"{where}: YAML error: {exc}") from None
     if not isinstance(data, dict):
         raise InputError(f"{where}: expected a mapping of scenario keys at the top level, got {type(data).__name__}")
-    return data
+    # Top-level keys starting with "x-" only hold YAML anchors shared by other blocks.
+    data = {k: v for k, v in data.items() if not (isinstance(k, str) and k.startswith("x-"))}
+    # Aliases (*anchor) share one object; unshare them so that --set changes one place only.
+    return _unshared(data)
+
+
+def _unshared(node: Any) -> Any:
+    """A copy of a YAML tree in which no two places share a mutable object."""
+    if isinstance(node, dict):
+        return {k: _unshared(v) for k, v in node.items()}
+    if isinstance(node, list):
+        return [_unshared(v) for v in node]
+    return node
 
 
 def apply_override(data: dict[str, Any], item: str, where: str) -> None:

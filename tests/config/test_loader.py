@@ -68,3 +68,13 @@ def test_yaml_syntax_error_gives_line_and_column():
 def test_missing_file():
     with pytest.raises(InputError, match="scenario file not found"):
         load_scenario("/nonexistent/dir/s.yaml")
+
+
+def test_yaml_anchors_in_x_keys_are_shared_then_unshared(tmp_path):
+    text = RACETRACK.read_text().replace("vehicles:\n", "x-sensors: &s\n  - {type: ideal_state, params: {rate_hz: 40}}\nvehicles:\n", 1)
+    text = text.replace("    sensors:\n      - {type: ideal_state, params: {rate_hz: 40}}\n", "    sensors: *s\n")
+    p = tmp_path / "s.yaml"
+    p.write_text(text)
+    loaded = load_scenario(p, ["vehicles.uav0.sensors.ideal_state.rate_hz=20"])
+    assert loaded.scenario.vehicles[0].sensors[0].params["rate_hz"] == 20
+    assert "x-sensors" not in loaded.data
