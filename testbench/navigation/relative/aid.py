@@ -129,6 +129,7 @@ class RelnavAid(NavigationAid):
                 raise InputError(f"relnav.cameras: no sensor named {name!r} on vehicle {self.self_id!r}")
             self.cams[name] = camera_model(sensors[name], name)
         self.cam_rate = {n: float(getattr(sensors[n], "rate_hz", 10.0)) for n in params.cameras}
+        self._phase = {n: zlib.crc32(f"{ctx.vehicle_id}/{n}".encode()) % params.roi.full_frame_every for n in params.cameras}
         self.led_rate_hz = float(params.led_rate_hz or next(iter(self.cam_rate.values()), 10.0))
         uwb_sensor = sensors.get(params.uwb) if params.uwb else None
         if params.uwb and uwb_sensor is None:
@@ -191,7 +192,7 @@ class RelnavAid(NavigationAid):
         tracker = self.trackers[name]
         t = float(frame.t_s)
         fi = led_code.frame_index(t, self.led_rate_hz)
-        n_cam = int(round(t * self.cam_rate[name]))
+        n_cam = int(round(t * self.cam_rate[name])) + self._phase[name]
         # A full frame, when the camera rendered one, is searched whole on full-frame ticks and
         # while this camera has no track; otherwise only around the predicted tracks.
         full_due = (not self.params.roi.enabled) or n_cam % self.params.roi.full_frame_every == 0 or not tracker.tracks
@@ -344,7 +345,9 @@ class RelnavAid(NavigationAid):
         be empty: nothing to render; new vehicles are found on the next full frame)."""
         out = {}
         for name, (cam, _) in self.cams.items():
-            n_cam = int(round(t_s * self.cam_rate[name]))
+            # Full frames are staggered over cameras (a fixed phase per camera), so that the
+            # expensive searches do not all fall on the same tick.
+            n_cam = int(round(t_s * self.cam_rate[name])) + self._phase[name]
             rp = self.params.roi
             if not rp.enabled or n_cam % rp.full_frame_every == 0:
                 out[name] = [(0, 0, cam.width_px, cam.height_px)]

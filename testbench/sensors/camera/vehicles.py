@@ -79,6 +79,26 @@ def shape_faces(kind: str, size_m: float):
     raise ValueError(f"vehicle shape must be quad, fixed_wing or box (got {kind!r})")
 
 
+@lru_cache(maxsize=32)
+def shape_arrays(kind: str, size_m: float):
+    """The faces of a shape as arrays: vertices (V, 3) body m, face slices into them, face
+    centroids (F, 3), outward normals (F, 3), shade factors (F,), one-sided flags (F,)."""
+    faces = shape_faces(kind, size_m)
+    verts = np.concatenate([fv for fv, _, _, _ in faces])
+    bounds = np.cumsum([0] + [len(fv) for fv, _, _, _ in faces])
+    slices = tuple(slice(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:]))
+    centroids = np.array([fv.mean(axis=0) for fv, _, _, _ in faces])
+    normals = np.array([n for _, n, _, _ in faces])
+    shades = np.array([sh for _, _, sh, _ in faces])
+    one_sided = np.array([o for _, _, _, o in faces], bool)
+    return verts, slices, centroids, normals, shades, one_sided
+
+
+# Below this projected size (px) a vehicle is drawn as one silhouette (its convex hull) in
+# its mean shaded colour: its faces would be sub-pixel anyway.
+_SILHOUETTE_PX = 6.0
+
+
 def draw_vehicles(img: np.ndarray, camera: PinholeCamera, roi_origin: tuple[int, int],
                   centre_ned_m, R_nc, vehicles: Sequence[VehicleAppearance], near_m: float,
                   far_m: float, ground_depth: Callable[[float, float], float] | None) -> tuple[VehicleTruth, ...]:
@@ -86,29 +106,31 @@ def draw_vehicles(img: np.ndarray, camera: PinholeCamera, roi_origin: tuple[int,
     roi_origin) and return their truth in full-frame pixel coordinates.
 
     camera: the full-frame camera; ground_depth(u, v): camera depth of the terrain seen at a
-    full-frame pixel (inf where sky), used to hide vehicles behind terrain.
+    full-frame pixel (inf where sky), used to hide vehicles behind terrain. Vehicles whose
+    projection misses the rendered region get their truth but are not drawn.
     """
     C = np.asarray(centre_ned_m, float)
     R_nc = np.asarray(R_nc, float)
     W, H = camera.width_px, camera.height_px
     f = 0.5 * (camera.fx + camera.fy)
     ou, ov = roi_origin
+    rh, rw = img.shape[:2]
     items = []  # (depth, kind, payload)
     truths = []
     for veh in vehicles:
         p = np.asarray(veh.pos_ned_m, float)
         R_nb = np.asarray(veh.R_nb, float)
-        faces = shape_faces(veh.shape, float(veh.size_m))
-        verts_b = np.concatenate([fv for fv, _, _, _ in faces])
-        verts_n = p + verts_b @ R_nb.T
-        uv_all, z_all = project_points(camera, C, R_nc, np.vstack([verts_n, p[None, :]]))
-        uv, z = uv_all[:-1], z_all[:-1]
-        centre_uv, centre_z = uv_all[-1], z_all[-1]
+        verts_b, slices, centroids_b, normals_b, shades, one_sided = shape_arrays(veh.shape, float(veh.size_m))
+        leds_b = np.asarray(veh.led_positions_b_m, float).reshape(-1, 3)
+        n_v, n_l = len(verts_b), len(leds_b)
+        # One projection for the vertices, the centre and the LEDs (body -> NED with R_nb).
+        pts_n = p + np.vstack([verts_b, np.zeros((1, 3)), leds_b]) @ R_nb.T
+        uv_all, z_all = project_points(camera, C, R_nc, pts_n)
+        uv, z = uv_all[:n_v], z_all[:n_v]
+        centre_uv, centre_z = uv_all[n_v], z_all[n_v]
+        led_uv, led_z = uv_all[n_v + 1:], z_all[n_v + 1:]
         rng_m = float(np.linalg.norm(p - C))
         in_front = bool((z > near_m).all()) and centre_z <= far_m
-        leds_b = np.asarray(veh.led_positions_b_m, float).reshape(-1, 3)
-        leds_n = p + leds_b @ R_nb.T
-        led_uv, led_z = project_points(camera, C, R_nc, leds_n)
         led_in = tuple(bool(zz > near_m and -0.5 <= uu < W - 0.5 and -0.5 <= vv < H - 0.5)
                        for (uu, vv), zz in zip(led_uv, led_z))
         bbox = (0.0, 0.0, 0.0, 0.0)
@@ -127,26 +149,35 @@ def draw_vehicles(img: np.ndarray, camera: PinholeCamera, roi_origin: tuple[int,
                                    tuple(bool(x) for x in veh.led_on), led_in, visible, rng_m))
         if not visible:
             continue
-        start = 0
-        for fv, n_b, shade, one_sided in faces:
-            m = len(fv)
-            fu, fz = uv[start : start + m], z[start : start + m]
-            centre_n = p + fv.mean(axis=0) @ R_nb.T
-            start += m
-            n_n = R_nb @ n_b
-            if one_sided and np.dot(n_n, centre_n - C) >= 0:
-                continue
-            light = 0.45 + 0.55 * max(0.0, float(np.dot(n_n if one_sided else np.sign(
-                -np.dot(n_n, centre_n - C)) * n_n, _SUN_NED)))
-            col = tuple(float(min(255.0, c * light * shade)) for c in veh.colour_rgb)
-            items.append((float(fz.mean()), 0, (fu, col)))
-        for i, ((lu, lv), lz) in enumerate(zip(led_uv, led_z)):
+        # Cull against the rendered region (LED glow can reach a few pixels beyond the body).
+        pad = 3.0 * max(1.0, veh.led_radius_m * f / max(centre_z, near_m)) + 2.0
+        if bbox[2] + pad < ou or bbox[0] - pad > ou + rw or bbox[3] + pad < ov or bbox[1] - pad > ov + rh:
+            continue
+        # Face lighting, vectorised: normals and centroids to NED, back faces culled.
+        n_n = normals_b @ R_nb.T
+        c_n = p + centroids_b @ R_nb.T
+        facing = np.einsum("ij,ij->i", n_n, c_n - C)
+        lit_n = np.where(one_sided[:, None], n_n, -np.sign(facing)[:, None] * n_n)
+        light = 0.45 + 0.55 * np.maximum(0.0, lit_n @ _SUN_NED)
+        show = ~(one_sided & (facing >= 0))
+        base = np.asarray(veh.colour_rgb, float)
+        if max(bbox[2] - bbox[0], bbox[3] - bbox[1]) < _SILHOUETTE_PX:
+            hull = cv2.convexHull(uv.astype(np.float32)).reshape(-1, 2).astype(float)
+            col = tuple(float(x) for x in np.minimum(255.0, base * float(np.mean((light * shades)[show]))))
+            items.append((float(centre_z), 0, (hull, col)))
+        else:
+            for i in np.flatnonzero(show):
+                sl = slices[i]
+                col = tuple(float(x) for x in np.minimum(255.0, base * light[i] * shades[i]))
+                items.append((float(z[sl].mean()), 0, (uv[sl], col)))
+        for i in range(n_l):
+            lz = led_z[i]
             if lz <= near_m:
                 continue
             on = bool(veh.led_on[i]) if i < len(veh.led_on) else False
             colour = veh.led_colours[i] if i < len(veh.led_colours) else (255, 255, 255)
             r_px = max(0.9, veh.led_radius_m * f / lz)
-            items.append((float(lz) - 1e-3 * veh.size_m, 1, ((lu, lv), r_px, on, colour)))
+            items.append((float(lz) - 1e-3 * veh.size_m, 1, ((led_uv[i, 0], led_uv[i, 1]), r_px, on, colour)))
     items.sort(key=lambda it: -it[0])
     scale = 1 << _SHIFT
     for _, kind, payload in items:
