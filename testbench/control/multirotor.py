@@ -267,8 +267,15 @@ class MultirotorController(Controller):
     def _guidance_status(self, t_s: float, index: int, on_leg: bool, prev_n: float, prev_e: float, bank_cmd: float,
                          p_n: float, p_e: float) -> GuidanceStatus:
         target = self._waypoints_ned[index]
+        # The commanded altitude is that of the straight 3-D leg at the vehicle's progress along
+        # it (not the next waypoint's altitude, which would count a climb in progress as error).
+        prev_d = self._waypoints_ned[index - 1][2] if index > 0 else target[2]
+        d_n, d_e = target[0] - prev_n, target[1] - prev_e
+        length2 = d_n * d_n + d_e * d_e
+        frac = 1.0 if length2 < 1e-6 else min(1.0, max(0.0, ((p_n - prev_n) * d_n + (p_e - prev_e) * d_e) / length2))
+        alt_cmd = -(prev_d + frac * (target[2] - prev_d))
         return GuidanceStatus(
-            t_s=t_s, leg_index=index, on_leg=on_leg, alt_cmd_m=-target[2],
+            t_s=t_s, leg_index=index, on_leg=on_leg, alt_cmd_m=alt_cmd,
             line_start_ne_m=(prev_n, prev_e),
             line_end_ne_m=(target[0], target[1]),
             target_ned_m=target,

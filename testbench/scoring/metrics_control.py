@@ -55,12 +55,64 @@ def compute_control(record: RunRecord) -> ControlMetrics | None:
     roll = column(tel, "truth_roll_rad")
     bank_max = float(np.rad2deg(np.nanmax(np.abs(roll)))) if np.isfinite(roll).any() else None
 
+    miss, overshoot = waypoint_errors(tel)
     out = ControlMetrics(
         altitude_error_m=error_stats(alt_err),
         cross_track_error_m=error_stats(xt),
         airspeed_error_mps=error_stats(as_err),
         bank_max_deg=bank_max,
+        waypoint_miss_m=error_stats(miss) if miss.size else None,
+        waypoint_overshoot_m=error_stats(overshoot) if overshoot.size else None,
     )
     if out == ControlMetrics():
         return None
     return out
+
+
+def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """3-D distance (m) of points p (n, 3) from the segment a -> b."""
+    d = b - a
+    L2 = float(d @ d)
+    t = np.zeros(len(p)) if L2 < 1e-12 else np.clip((p - a) @ d / L2, 0.0, 1.0)
+    return np.linalg.norm(p - (a + t[:, None] * d), axis=1)
+
+
+def waypoint_errors(tel) -> tuple[np.ndarray, np.ndarray]:
+    """(miss_m per waypoint reached, overshoot_m per waypoint) over the vehicles of `tel`.
+
+    A waypoint is "reached" when guidance moves on to the next target. Its miss is the closest
+    true 3-D approach while it was active; its overshoot is the largest true distance from the
+    path through it (previous -> it -> next) while the next one is active.
+    """
+    miss, over = [], []
+    vids = tel["vehicle_id"].to_numpy() if "vehicle_id" in tel else np.zeros(len(tel), object)
+    for vid in dict.fromkeys(vids):
+        m = vids == vid
+        tgt = np.c_[column(tel, "gd_target_n_m")[m], column(tel, "gd_target_e_m")[m], column(tel, "gd_target_d_m")[m]]
+        pos = np.c_[column(tel, "truth_north_m")[m], column(tel, "truth_east_m")[m], column(tel, "truth_down_m")[m]]
+        ok = np.isfinite(tgt).all(axis=1)
+        if not ok.any():
+            continue
+        # Runs of rows with the same target, in order.
+        change = np.r_[True, np.any(tgt[1:] != tgt[:-1], axis=1)] & ok
+        starts = np.flatnonzero(change)
+        runs = [(s, e) for s, e in zip(starts, np.r_[starts[1:], len(tgt)])]
+        for i, (s, e) in enumerate(runs):
+            rows = slice(s, e)
+            if i + 1 >= len(runs):
+                break  # the last target is never left: not "reached then moved on"
+            wp = tgt[s]
+            # Closest approach of the trajectory between records (linear between rows), so the
+            # record rate does not inflate the miss.
+            track = pos[s:min(e + 1, len(pos))]
+            if len(track) > 1:
+                miss.append(float(min(_segment_distance(wp[None, :], a, b)[0] for a, b in zip(track[:-1], track[1:]))))
+            else:
+                miss.append(float(np.linalg.norm(track[0] - wp)))
+            ns, ne = runs[i + 1]
+            prev = tgt[runs[i - 1][0]] if i > 0 else pos[s]
+            nxt = tgt[ns]
+            p_next = pos[ns:ne]
+            d = np.minimum(_segment_distance(p_next, prev, wp), _segment_distance(p_next, wp, nxt))
+            over.append(float(d.max()))
+    return np.asarray(miss, float), np.asarray(over, float)

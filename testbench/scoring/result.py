@@ -50,13 +50,18 @@ class ControlMetrics(_Section):
     altitude_error_m: |truth altitude - commanded altitude| (m), every row with a command;
     cross_track_error_m: distance of the true position from the commanded leg line (m), rows
     on a leg; airspeed_error_mps: |true airspeed - commanded| (m/s), rows on a leg;
-    bank_max_deg: largest |true roll| (deg).
+    bank_max_deg: largest |true roll| (deg);
+    waypoint_miss_m: per waypoint reached, the closest true 3-D approach to it while it was the
+    active target (m); waypoint_overshoot_m: per waypoint, the largest true distance from the
+    path through it (the incoming and outgoing legs) while flying to the next one (m).
     """
 
     altitude_error_m: ErrorStats | None = None
     cross_track_error_m: ErrorStats | None = None
     airspeed_error_mps: ErrorStats | None = None
     bank_max_deg: float | None = None
+    waypoint_miss_m: ErrorStats | None = None
+    waypoint_overshoot_m: ErrorStats | None = None
 
 
 @dataclass(frozen=True)
