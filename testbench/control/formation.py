@@ -13,7 +13,12 @@ Consensus law (over fresh neighbours j with weights a_j, leader weight configura
   e = sum_j a_j [r_j - R(chi) (s_j - s_self)] / sum_j a_j          (slot error, NED, m)
   v_ff = low-pass of sum_j a_j v_j / sum_j a_j                       (velocity feed-forward)
   v_cmd = v_ff + k_slot e + sum_{j: |r_j| < margin} k_rep (|r_j| - margin) r_j / |r_j|
+then slew-limited to max_accel_mps2 (a jump of an estimate must not become a 40 degree tilt:
+the vehicle's own cameras would lose their tracks, and its attitude errors enter the bearings).
+"Fresh" neighbours: estimates younger than max_age_s whose 1-sigma position uncertainty is
+below max_sigma_m (an estimate held by ranges alone drifts across the line of sight).
 With nobody fresh in sight it holds its last course and speed at its last altitude.
+The multirotor follower turns its nose toward the course at most max_yaw_rate_deg_s.
 The multirotor follower feeds v_cmd to the multirotor cascade's inner loops (velocity ->
 attitude -> rate -> mixer) with the nose on the course; the fixed-wing follower turns v_cmd
 into bank (course error), airspeed and altitude commands for the fixed-wing autopilot.
@@ -61,7 +66,9 @@ class FormationParams(ParamsModel):
     leader_id, leader_weight: weight of the leader's term (others 1); k_slot (1/s): slot gain;
     ff_tau_s: low-pass time constant of the velocity feed-forward; course_min_speed_mps: below
     this the course is held; margin_m, k_repulse (1/s): collision-avoidance margin and gain;
-    max_age_s: estimates older than this are ignored; max_speed_mps, max_climb_rate_mps."""
+    max_age_s, max_sigma_m: estimates older or more uncertain (sqrt trace of the position
+    covariance) than this are ignored; max_speed_mps, max_climb_rate_mps; max_accel_mps2: slew
+    limit of the velocity command."""
 
     slots: dict[str, tuple[float, float, float]]
     leader_id: str | None = None
@@ -74,6 +81,8 @@ class FormationParams(ParamsModel):
     max_age_s: float = pydantic.Field(2.0, gt=0)
     max_speed_mps: float = pydantic.Field(10.0, gt=0)
     max_climb_rate_mps: float = pydantic.Field(2.0, gt=0)
+    max_accel_mps2: float = pydantic.Field(1.5, gt=0)
+    max_sigma_m: float = pydantic.Field(3.0, gt=0)
 
 
 class FormationLaw:
@@ -91,6 +100,7 @@ class FormationLaw:
         self.t_prev: float | None = None
         self.n_seen = 0
         self.error_ned_m = np.zeros(3)
+        self.v_out: np.ndarray | None = None
 
     def velocity_command(self, t_s: float, est: NavEstimate, table: dict | None) -> np.ndarray:
         """v_cmd (3,) NED m/s from the own estimate and the NeighbourTable."""
@@ -101,8 +111,10 @@ class FormationLaw:
         if self.course is None:
             self.course = float(est.rpy_rad[2])
             self.v_ff = np.array([vel[0], vel[1], 0.0])
+        if self.v_out is None:
+            self.v_out = vel.copy()
         fresh = [e for k, e in (table or {}).items()
-                 if k in p.slots and k != self.self_id and t_s - e.t_s <= p.max_age_s]
+                 if k in p.slots and k != self.self_id and t_s - e.t_s <= p.max_age_s and e.sigma_m <= p.max_sigma_m]
         self.n_seen = len(fresh)
         if not fresh:  # hold course, speed and altitude
             if self.hold_alt_down_m is None:
@@ -110,7 +122,7 @@ class FormationLaw:
             v = self.v_ff.copy()
             v[2] = float(np.clip(0.5 * (self.hold_alt_down_m - pos[2]), -p.max_climb_rate_mps, p.max_climb_rate_mps))
             self.error_ned_m = np.zeros(3)
-            return self._limit(v)
+            return self._limit(v, dt)
         self.hold_alt_down_m = None
         w = np.array([p.leader_weight if e.peer_id == p.leader_id else 1.0 for e in fresh])
         w /= w.sum()
@@ -130,15 +142,23 @@ class FormationLaw:
             d = float(np.linalg.norm(r))
             if 1e-6 < d < p.margin_m:
                 v += p.k_repulse * (d - p.margin_m) * r / d  # away from the neighbour
-        return self._limit(v)
+        return self._limit(v, dt)
 
-    def _limit(self, v: np.ndarray) -> np.ndarray:
+    def _limit(self, v: np.ndarray, dt: float) -> np.ndarray:
+        """Speed and climb limits, then the slew limit (|dv| <= max_accel dt) from the last output."""
         v = np.asarray(v, float).copy()
         v[2] = float(np.clip(v[2], -self.p.max_climb_rate_mps, self.p.max_climb_rate_mps))
         h = math.hypot(v[0], v[1])
         if h > self.p.max_speed_mps:
             v[:2] *= self.p.max_speed_mps / h
-        return v
+        if self.v_out is not None and dt > 0:
+            dv = v - self.v_out
+            n = float(np.linalg.norm(dv))
+            lim = self.p.max_accel_mps2 * dt
+            if n > lim:
+                v = self.v_out + dv * (lim / n)
+        self.v_out = v
+        return v.copy()
 
     def status(self, t_s: float, pos: np.ndarray, airspeed_cmd: float = float("nan"), bank: float = float("nan"),
                error_ned_m: np.ndarray | None = None, n_seen: int | None = None) -> GuidanceStatus:
@@ -171,6 +191,7 @@ class FormationFollower(MultirotorController):
 
     class Params(FormationParams):
         max_tilt_deg: float | None = pydantic.Field(default=None, gt=0.0, lt=60.0)
+        max_yaw_rate_deg_s: float = pydantic.Field(15.0, gt=0)
 
     def __init__(self, params: "FormationFollower.Params", *, ctx: BuildContext, aircraft: dict, mission=None, **_: object):
         base = MultirotorController.Params(max_speed_mps=params.max_speed_mps, max_climb_rate_mps=params.max_climb_rate_mps,
@@ -180,6 +201,8 @@ class FormationFollower(MultirotorController):
         self._v_cmd = np.zeros(3)
         self._fstatus = GuidanceStatus(t_s=0.0)
         self._fstatus_inputs: tuple | None = None
+        self._max_yaw_rate = math.radians(params.max_yaw_rate_deg_s)
+        self._t_yaw: float | None = None
 
     def _velocity_command(self, pos: np.ndarray) -> np.ndarray:  # called by the cascade
         return self._v_cmd
@@ -188,7 +211,13 @@ class FormationFollower(MultirotorController):
         self._v_cmd = self.law.velocity_command(t_s, estimate, reference)
         if self._prev_pt is None:  # first tick: the cascade initialises from the estimate
             self._prev_pt = np.asarray(estimate.pos_ned_m, float).copy()
-        self._yaw_sp = self.law.course
+        # Nose toward the formation course, turning at most max_yaw_rate (smooth for the cameras).
+        if self._yaw_sp is None or self._t_yaw is None:
+            self._yaw_sp = self.law.course
+        else:
+            step = self._max_yaw_rate * max(t_s - self._t_yaw, 0.0)
+            self._yaw_sp = wrap_pi(self._yaw_sp + float(np.clip(wrap_pi(self.law.course - self._yaw_sp), -step, step)))
+        self._t_yaw = t_s
         cmd = super().update(t_s, estimate, reference)
         # Built only when asked (at the record rate), like the cascade's own status.
         self._fstatus_inputs = (t_s, np.array(estimate.pos_ned_m, float), self.law.error_ned_m.copy(), self.law.n_seen)

@@ -23,7 +23,7 @@ from testbench.core.errors import InputError
 from testbench.core.interfaces import BuildContext, NavigationAid
 from testbench.core.messages import NavEstimate, UwbRange
 from testbench.core.registry import ParamsModel, build, register
-from testbench.core.rotations import quat_to_dcm
+from testbench.core.rotations import quat_to_dcm, rotvec_to_quat
 from testbench.navigation.relative.detectors import LedDetector
 from testbench.navigation.relative.diagnostics import RelnavDiagnostics, id_check
 from testbench.navigation.relative.frames import camera_model, frame_camera_name, frame_parts, is_camera_frame
@@ -206,10 +206,11 @@ class RelnavAid(NavigationAid):
             truths.extend(part.truths)
         self.counters["frames"] += 1
         self.counters["detections"] += len(dets)
-        updated = tracker.update(t, fi, dets)
-
         R_nb = quat_to_dcm(est.q_nb_wxyz)
         R_nc = R_nb @ mount.R_bc
+        # Own rotation between frames compensated in the image tracker (own estimated attitude).
+        updated = tracker.update(t, fi, dets, R_nc, cam.K)
+
         # The bearing points at the detected point p_peer + R_nb o (o: target offset): fuse it as
         # a bearing to the CG seen from a camera moved by -R_nb o.
         c_off = R_nb @ (mount.lever_arm_b_m - np.asarray(self.params.target_offset_b_m, float))
@@ -313,18 +314,30 @@ class RelnavAid(NavigationAid):
                      and t - f.t_s > self.params.stale_after_s]:
             del self.filters[peer]
 
+    def _attitude_at(self, t: float) -> np.ndarray | None:
+        """Own attitude R_nb (3, 3) at t: the latest estimate carried by its body rate."""
+        est = self.last_estimate
+        if est is None:
+            return None
+        R_nb = quat_to_dcm(est.q_nb_wxyz)
+        dt = t - float(est.t_s)
+        if 0.0 < dt < 0.5:
+            R_nb = R_nb @ quat_to_dcm(rotvec_to_quat(np.asarray(est.omega_b_rps, float) * dt))
+        return R_nb
+
     def _track_rois(self, name: str, t: float) -> list:
         cam, mount = self.cams[name]
         rp = self.params.roi
         rois = []
+        R_nb = self._attitude_at(t)
+        R_nc = None if R_nb is None else R_nb @ mount.R_bc
         for tr in self.trackers[name].tracks:
-            r = roi_around(tr.box_at(t), rp.margin_px + rp.margin_per_miss_px * tr.misses, cam.width_px, cam.height_px, rp.min_size_px)
+            r = roi_around(tr.box_at(t, R_nc, cam.K), rp.margin_px + rp.margin_per_miss_px * tr.misses, cam.width_px, cam.height_px,
+                           rp.min_size_px)
             if r is not None:
                 rois.append(r)
         # Neighbours known from other cameras or from before: look where they should appear.
-        est = self.last_estimate
-        if est is not None and self.filters:
-            R_nb = quat_to_dcm(est.q_nb_wxyz)
+        if R_nb is not None and self.filters:
             for f in self.filters.values():
                 x = f.x[:3] + (t - f.t_s) * f.x[3:]
                 uv, z = project_relative(cam, mount, R_nb, x[None, :])

@@ -8,6 +8,13 @@ Birth: a track is confirmed after `n_init` hits; death after `max_misses` frames
 detection (a tentative track dies at its first miss). Each track decodes its LED blink ID
 (idcode.IdDecoder); once its confidence passes `id_confidence` the track carries that ID, and
 a later change of the decoded ID is counted (`counters["id_changes"]`).
+
+Ego-rotation: a vehicle that turns or tilts by a few degrees between frames moves every image
+point by f * angle (tens of pixels), far outside any image-plane motion model. When the caller
+passes the camera attitude R_nc (camera -> NED, from the OWN ESTIMATED attitude) and the
+intrinsic matrix K, each track's centre is first carried through the infinite homography
+K R_nc_new^T R_nc_old K^-1 (a pure rotation; lens distortion neglected), so that the filter only
+models the slow relative motion.
 """
 
 from __future__ import annotations
@@ -62,19 +69,33 @@ class Track:
     id_confidence: float = 0.0
     last_detection: Detection | None = None
     history: list = field(default_factory=list)
+    R_nc: np.ndarray | None = None  # camera attitude the state's pixels refer to (None: unknown)
 
     @property
     def centre_px(self) -> np.ndarray:
         return self.kf.x[:2, 0].copy()
 
-    def box_at(self, t_s: float) -> tuple[float, float, float, float]:
-        """Predicted (u0, v0, u1, v1) at time t_s (constant image velocity)."""
+    def box_at(self, t_s: float, R_nc: np.ndarray | None = None, K: np.ndarray | None = None) -> tuple[float, float, float, float]:
+        """Predicted (u0, v0, u1, v1) at time t_s (constant image velocity), seen with camera
+        attitude R_nc (3, 3) when given with K (3, 3) (see module docstring)."""
         x = self.kf.x[:, 0]
         dt = t_s - self.t_s
         u, v, a, h = x[:4] + dt * x[4:]
+        if R_nc is not None and K is not None and self.R_nc is not None:
+            u, v = rotate_pixel(u, v, np.asarray(R_nc).T @ self.R_nc, K)
         h = max(h, 1.0)
         w = max(a, 0.05) * h
         return (u - w / 2, v - h / 2, u + w / 2, v + h / 2)
+
+
+def rotate_pixel(u: float, v: float, M: np.ndarray, K: np.ndarray) -> tuple[float, float]:
+    """Pixel (u, v) of a ray after the camera rotates: M (3, 3) maps old camera-frame vectors to
+    the new camera frame; the ray is K^-1 [u v 1]. A ray that ends behind the camera is left."""
+    d = M @ np.linalg.solve(K, np.array([u, v, 1.0]))
+    if d[2] <= 1e-6:
+        return u, v
+    p = K @ (d / d[2])
+    return float(p[0]), float(p[1])
 
 
 class Tracker:
@@ -122,10 +143,16 @@ class Tracker:
 
     # -- frames -----------------------------------------------------------------------------
 
-    def update(self, t_s: float, frame_index: int, detections: list[Detection]) -> list[Track]:
+    def update(self, t_s: float, frame_index: int, detections: list[Detection], R_nc: np.ndarray | None = None,
+               K: np.ndarray | None = None) -> list[Track]:
         """Predict all tracks to t_s, assign `detections`, update, birth and death.
-        Returns the tracks that received a detection in this frame."""
+        R_nc (3, 3) camera -> NED and K (3, 3): compensate the camera's rotation since each
+        track's last frame (module docstring). Returns the tracks that received a detection."""
         for tr in self.tracks:
+            if R_nc is not None and K is not None and tr.R_nc is not None:
+                u, v = rotate_pixel(tr.kf.x[0, 0], tr.kf.x[1, 0], np.asarray(R_nc).T @ tr.R_nc, K)
+                tr.kf.x[0, 0], tr.kf.x[1, 0] = u, v
+            tr.R_nc = None if R_nc is None else np.asarray(R_nc, float)
             self._predict(tr, t_s)
         zs = [_z(d) for d in detections]
         n, m = len(self.tracks), len(detections)
@@ -173,7 +200,7 @@ class Tracker:
                 continue
             tr = Track(next(self._ids), self._new_kf(zs[j]), t_s,
                        IdDecoder(self.n_vehicles, self.exclude, self.s.p_chip, search_phase=self.s.search_phase),
-                       last_detection=det)
+                       last_detection=det, R_nc=None if R_nc is None else np.asarray(R_nc, float))
             if self.s.n_init <= 1:
                 tr.confirmed = True
                 self.counters["confirmed"] += 1
