@@ -94,7 +94,7 @@ def run_scenario(
     """Fly the scenario and write the output contract into out_dir."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    for stale in ("metrics.json", "run.json", "report.html", "report.pdf"):
+    for stale in ("metrics.json", "run.json", "report.html", "report.pdf", "map_preview.png"):
         (out / stale).unlink(missing_ok=True)  # never leave a previous run's verdict behind
     engine, world, recorder = build_engine(loaded, seed=seed, realtime=realtime, on_progress=on_progress, frame_sink=frame_sink)
     result = engine.run()
@@ -103,6 +103,9 @@ def run_scenario(
     recorder.write(out)
     (out / "scenario.yaml").write_text(yaml.safe_dump(loaded.data, sort_keys=False), encoding="utf-8")
     run_info = _run_info(loaded, engine, world, result, seed)
+    preview = _map_preview(world, recorder, out)
+    if preview is not None:
+        run_info["map_image"] = preview
     (out / "run.json").write_text(json.dumps(run_info, indent=2, sort_keys=True) + "\n", encoding="utf-8")
     return finish_run(out, run_info, report=report, pdf=pdf)
 
@@ -133,6 +136,33 @@ def finish_run(out: Path, run_info: dict[str, Any], *, report: bool, pdf: bool) 
         failed_thresholds=[f["key"] if isinstance(f, dict) else str(f) for f in verdict.failed],
         abort_reason=run_info.get("abort_reason"),
     )
+
+
+def _map_preview(world: RunWorld, recorder: Recorder, out: Path, max_px: int = 1200) -> dict[str, Any] | None:
+    """A PNG of the camera imagery under the flown area (for the report's trajectory plot):
+    {"path": "map_preview.png", "bounds_ne_m": [n_min, n_max, e_min, e_max]}; None without imagery."""
+    if world.spec.imagery is None or recorder.n_rows == 0:
+        return None
+    import cv2
+
+    tel = recorder.telemetry_table()
+    n = np.asarray(tel.column("truth_north_m").to_numpy())
+    e = np.asarray(tel.column("truth_east_m").to_numpy())
+    margin = 300.0 + 0.1 * max(np.ptp(n), np.ptp(e))
+    n0, n1, e0, e1 = n.min() - margin, n.max() + margin, e.min() - margin, e.max() + margin
+    gsd = max(n1 - n0, e1 - e0) / max_px
+    try:
+        raster = world.imagery().read_local(n0, n1, e0, e1, gsd)
+    except Exception as exc:  # noqa: BLE001 -- a missing preview must not fail the run
+        log.warning("no map preview for the report: %s", exc)
+        return None
+    img = np.where(raster.valid[..., None], raster.data[..., :3], 255).astype(np.uint8)
+    cv2.imwrite(str(out / "map_preview.png"), np.ascontiguousarray(img[..., ::-1]))
+    h, w = raster.shape
+    return {
+        "path": "map_preview.png",
+        "bounds_ne_m": [raster.north0_m - h * raster.gsd_m, raster.north0_m, raster.east0_m, raster.east0_m + w * raster.gsd_m],
+    }
 
 
 def _run_info(loaded: LoadedScenario, engine: Engine, world: RunWorld, result: EngineResult, seed) -> dict[str, Any]:
