@@ -11,6 +11,7 @@ cos chi, 0). Slots s_k (forward, right, down, m) are given per vehicle id.
 
 Consensus law (over fresh neighbours j with weights a_j, leader weight configurable):
   e = sum_j a_j [r_j - R(chi) (s_j - s_self)] / sum_j a_j          (slot error, NED, m)
+(j over the neighbours ahead, see ahead_only)
   v_ff = low-pass of sum_j a_j v_j / sum_j a_j                       (velocity feed-forward)
   v_cmd = v_ff + k_slot e + sum_{j: |r_j| < margin} k_rep (|r_j| - margin) r_j / |r_j|
 then slew-limited to max_accel_mps2 (a jump of an estimate must not become a 40 degree tilt:
@@ -68,7 +69,9 @@ class FormationParams(ParamsModel):
     this the course is held; margin_m, k_repulse (1/s): collision-avoidance margin and gain;
     max_age_s, max_sigma_m: estimates older or more uncertain (sqrt trace of the position
     covariance) than this are ignored; max_speed_mps, max_climb_rate_mps; max_accel_mps2: slew
-    limit of the velocity command."""
+    limit of the velocity command; ahead_only: follow only the neighbours whose slot lies ahead
+    of ours (closer to the leader; all of them when none ahead is fresh), so that the lag of the
+    followers behind does not drag the formation (a directed leader-follower chain)."""
 
     slots: dict[str, tuple[float, float, float]]
     leader_id: str | None = None
@@ -83,6 +86,7 @@ class FormationParams(ParamsModel):
     max_climb_rate_mps: float = pydantic.Field(2.0, gt=0)
     max_accel_mps2: float = pydantic.Field(1.5, gt=0)
     max_sigma_m: float = pydantic.Field(3.0, gt=0)
+    ahead_only: bool = True
 
 
 class FormationLaw:
@@ -115,6 +119,9 @@ class FormationLaw:
             self.v_out = vel.copy()
         fresh = [e for k, e in (table or {}).items()
                  if k in p.slots and k != self.self_id and t_s - e.t_s <= p.max_age_s and e.sigma_m <= p.max_sigma_m]
+        if p.ahead_only:
+            ahead = [e for e in fresh if p.slots[e.peer_id][0] > self.s_self[0] + 1.0]
+            fresh = ahead or fresh
         self.n_seen = len(fresh)
         if not fresh:  # hold course, speed and altitude
             if self.hold_alt_down_m is None:

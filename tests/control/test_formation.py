@@ -46,7 +46,8 @@ def test_command_moves_follower_toward_slot():
 
 
 def test_consensus_over_two_neighbours_and_repulsion():
-    p = FormationParams(slots=SLOTS, leader_id="lead", leader_weight=1.0, margin_m=20.0, k_repulse=1.0, k_slot=0.1)
+    p = FormationParams(slots=SLOTS, leader_id="lead", leader_weight=1.0, margin_m=20.0, k_repulse=1.0, k_slot=0.1,
+                        ahead_only=False)
     law = FormationLaw(p, "f1")
     # Exactly in slot relative to both: zero error, zero command at rest.
     est = _est((0, 0, -100.0), (1e-9, 0, 0))
@@ -58,6 +59,29 @@ def test_consensus_over_two_neighbours_and_repulsion():
     table["f2"] = _rel("f2", (0.0, 8.0, 0.0))
     v = law.velocity_command(0.1, est, table)
     assert v[1] < 0.0
+
+
+def test_ahead_only_ignores_followers_alongside_and_slew_limit():
+    law = FormationLaw(FormationParams(slots=SLOTS, leader_id="lead", k_slot=0.5, max_accel_mps2=1.0), "f1")
+    est = _est((0, 0, -100.0), (1e-9, 0, 0))
+    # f2 (alongside, not ahead) says f1 is 10 m off; the leader says f1 is in its slot.
+    table = {"lead": _rel("lead", (50.0, 30.0, 0.0)), "f2": _rel("f2", (10.0, 60.0, 0.0))}
+    law.velocity_command(0.0, est, table)
+    np.testing.assert_allclose(law.error_ned_m, 0.0, atol=1e-12)
+    assert law.n_seen == 1
+    # Without the leader, the followers alongside are used.
+    law.velocity_command(0.1, est, {"f2": table["f2"]})
+    np.testing.assert_allclose(law.error_ned_m, [10.0, 0.0, 0.0], atol=1e-12)
+    # The command moved by at most max_accel * dt from the previous one (0).
+    v = law.velocity_command(0.2, est, {"f2": table["f2"]})
+    assert np.linalg.norm(v) <= 1.0 * 0.2 + 1e-9
+
+
+def test_uncertain_estimates_are_ignored():
+    law = FormationLaw(FormationParams(slots=SLOTS, leader_id="lead", max_sigma_m=3.0), "f1")
+    wide = RelativeEstimate(0.0, "lead", np.array([60.0, 30.0, 0.0]), np.zeros(3), np.eye(3) * 25.0, np.eye(3))
+    law.velocity_command(0.0, _est((0, 0, -100.0)), {"lead": wide})
+    assert law.n_seen == 0
 
 
 def test_hold_course_speed_and_altitude_without_neighbours():

@@ -44,11 +44,14 @@ class DetectorSpec(ParamsModel):
 class RoiParams(ParamsModel):
     """enabled: detect/render only around predicted tracks between full frames;
     full_frame_every: a full frame every N camera frames (finds new vehicles);
+    search_every: a camera that tracks nothing and knows of no neighbour in its view renders a
+    full frame every N frames (acquisition at start-up and after losing everything);
     margin_px: region margin around a predicted box (grows by margin_per_miss_px per miss);
     min_size_px: smallest region side."""
 
     enabled: bool = True
     full_frame_every: int = pydantic.Field(10, ge=1)
+    search_every: int = pydantic.Field(10, ge=1)
     margin_px: float = pydantic.Field(24.0, ge=0)
     margin_per_miss_px: float = pydantic.Field(12.0, ge=0)
     min_size_px: int = pydantic.Field(48, ge=8)
@@ -355,17 +358,21 @@ class RelnavAid(NavigationAid):
         """Regions each camera should render at t_s (full-frame pixels, u1/v1 exclusive):
         the whole frame [(0, 0, W, H)] on full-frame ticks (every roi.full_frame_every frames),
         else the merged regions around predicted tracks and projected neighbour estimates (may
-        be empty: nothing to render; new vehicles are found on the next full frame)."""
+        be empty: nothing to render; new vehicles are found on the next full frame). Cameras
+        without a frame at t_s are left out."""
         out = {}
         for name, (cam, _) in self.cams.items():
+            n = t_s * self.cam_rate[name]
+            if abs(n - round(n)) > 1e-6:
+                continue  # not a frame of this camera (the engine asks at every sensor tick)
             # Full frames are staggered over cameras (a fixed phase per camera), so that the
             # expensive searches do not all fall on the same tick.
-            n_cam = int(round(t_s * self.cam_rate[name])) + self._phase[name]
+            n_cam = int(round(n)) + self._phase[name]
             rp = self.params.roi
-            if not rp.enabled or n_cam % rp.full_frame_every == 0:
-                out[name] = [(0, 0, cam.width_px, cam.height_px)]
-            else:
-                out[name] = self._track_rois(name, t_s)
+            rois = None if (not rp.enabled or n_cam % rp.full_frame_every == 0) else self._track_rois(name, t_s)
+            if rois is not None and not rois and n_cam % rp.search_every == 0:
+                rois = None  # nothing expected in view: search the whole frame now and then
+            out[name] = [(0, 0, cam.width_px, cam.height_px)] if rois is None else rois
         return out
 
     def controller_input(self, t_s: float | None = None) -> NeighbourTable:

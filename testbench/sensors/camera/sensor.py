@@ -28,6 +28,7 @@ from testbench.core.registry import ParamsModel, register
 from testbench.core.rotations import quat_to_dcm
 from testbench.sensors.camera.render import render
 from testbench.sensors.camera.types import RenderedFrame, RenderOptions, VehicleAppearance, VehicleTruth
+from testbench.sensors.camera.vehicles import draw_vehicles
 from testbench.world.raster import LocalRaster
 
 log = logging.getLogger(__name__)
@@ -100,6 +101,7 @@ class CameraParams(ParamsModel):
     haze_visibility_m: float | None = 40000.0
     max_window_px: int = pydantic.Field(4096, ge=256, description="largest map window side read per frame")
     render_vehicles: bool = True
+    render_image: bool = pydantic.Field(True, description="False: no pixels (black frames at no cost), only the other vehicles' truth annotations (oracle detector studies)")
 
     @pydantic.model_validator(mode="after")
     def _intrinsics(self) -> "CameraParams":
@@ -157,6 +159,8 @@ class CameraSensor(Sensor):
         if requests is not None and len(requests) == 0:
             return None  # the aid asked for nothing this frame: nothing to render
         centre, R_nc = camera_pose_ned(pos, R_nb, self.mount)
+        if not self.params.render_image:
+            return self._annotations_only(truth, world, centre, R_nc, requests)
         imagery = None
         elevation = None
         bounds_gsd = self._footprint(centre, R_nc, world)
@@ -184,6 +188,27 @@ class CameraSensor(Sensor):
             log.warning("camera %s at t=%.1f s: %.0f %% of the view is off the map (no-data)", self.name, truth.t_s, 100 * offmap)
             self._warned_offmap = True
         return CameraFrame(truth.t_s, self.name, None if whole is None else whole.image, tuple(parts), truths, offmap)
+
+    def _annotations_only(self, truth: TruthState, world: Any, centre: np.ndarray, R_nc: np.ndarray, requests) -> CameraFrame:
+        """A frame without pixels: zero-stride black images of the requested regions, with the
+        truth of the other vehicles (projected, nothing drawn; no terrain occlusion)."""
+        cam = self.camera
+        vehicles = tuple(world.appearances(truth.t_s)) if self.params.render_vehicles and hasattr(world, "appearances") else ()
+        scratch = np.zeros((1, 1, 3), np.uint8)
+        far = (-(10**7), -(10**7))  # the scratch region lies off every vehicle: nothing is drawn
+        truths = draw_vehicles(scratch, cam, far, centre, R_nc, vehicles, self.params.near_m, self.params.far_m, None) if vehicles else ()
+        parts = []
+        for roi in [None] if requests is None else list(requests):
+            box = (0, 0, cam.width_px, cam.height_px) if roi is None else tuple(int(x) for x in roi)
+            full = box == (0, 0, cam.width_px, cam.height_px)
+            h, w = box[3] - box[1], box[2] - box[0]
+            if h <= 0 or w <= 0:
+                continue
+            img = np.broadcast_to(np.zeros((1, 1, 3), np.uint8), (h, w, 3))
+            flags = np.broadcast_to(np.zeros((1, 1), bool), (h, w))
+            parts.append(RenderedFrame(img, flags, flags, 0.0, truths, None if full else box))
+        whole = next((p for p in parts if p.roi is None), None)
+        return CameraFrame(truth.t_s, self.name, None if whole is None else whole.image, tuple(parts), truths, 0.0)
 
     def _footprint(self, centre: np.ndarray, R_nc: np.ndarray, world: Any):
         """NE bounds of the ground the frame can see and the window's ground sample (m/px),

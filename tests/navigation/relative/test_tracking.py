@@ -89,3 +89,27 @@ def test_code_properties():
             s = led_code.led_states(k, fi, 4)
             assert s[0] and len(s) == 4  # the anchor LED is always on
     assert led_code.frame_index(0.3, 10.0) == 3
+
+
+def test_own_rotation_is_compensated():
+    """A fixed line of sight seen by a camera that yaws 4 deg per frame moves ~39 px per frame
+    in the image: with the camera attitude given, one track follows it; without, it is lost."""
+    from testbench.core.camera_geometry import PinholeCamera
+
+    cam = PinholeCamera.from_hfov(1920, 1080, 120.0)
+    los_n = np.array([1.0, 0.02, 0.05])  # NED direction of a distant neighbour
+
+    def run(with_attitude):
+        tr = Tracker(n_vehicles=10, own_index=0, settings=TrackerSettings(n_init=2))
+        for k in range(20):
+            ang = np.radians(4.0) * k * (1 if k < 10 else -1) + (np.radians(80.0) if k >= 10 else 0.0)
+            R_nb = np.array([[np.cos(ang), -np.sin(ang), 0], [np.sin(ang), np.cos(ang), 0], [0, 0, 1.0]])
+            R_bc = np.array([[0, 0, 1.0], [1.0, 0, 0], [0, 1.0, 0]])  # camera z forward, x right, y down
+            R_nc = R_nb @ R_bc
+            d = R_nc.T @ los_n
+            uv = cam.K @ (d / d[2])
+            tr.update(0.1 * k, k, [_det(uv[0], uv[1], 1.0)], R_nc if with_attitude else None, cam.K if with_attitude else None)
+        return tr.counters["born"]
+
+    assert run(True) == 1
+    assert run(False) > 3
