@@ -20,17 +20,10 @@ import numpy as np
 from testbench.core.interfaces import SceneMatcher
 from testbench.core.registry import ParamsModel, register
 from testbench.navigation.ismn.features import robust_image
+from testbench.navigation.ismn.tiles import feature_crop, refine_tiles, subpixel_peak, tile_consensus, tile_grid
 from testbench.navigation.ismn.types import MatchPrior, MatchResult
 
-
-def subpixel_peak(res: np.ndarray, x: int, y: int) -> tuple[float, float]:
-    """Quadratic (parabola) refinement of an integer peak of a score surface, per axis."""
-    def fit(l, c, r):
-        den = l - 2.0 * c + r
-        return 0.0 if den >= 0 else float(np.clip(0.5 * (l - r) / den, -0.5, 0.5))
-    dx = fit(res[y, x - 1], res[y, x], res[y, x + 1]) if 0 < x < res.shape[1] - 1 else 0.0
-    dy = fit(res[y - 1, x], res[y, x], res[y + 1, x]) if 0 < y < res.shape[0] - 1 else 0.0
-    return x + dx, y + dy
+__all__ = ["NccMatcher", "PhaseMatcher", "feature_crop", "subpixel_peak"]
 
 
 def peak_and_second(res: np.ndarray, exclusion_px: int):
@@ -71,27 +64,21 @@ def pyramid(img: np.ndarray, valid: np.ndarray, levels: int):
     return out
 
 
-def feature_crop(img, valid, x, y, w, h, kind, pad=10):
-    """Appearance-robust feature of img[y:y+h, x:x+w], computed with `pad` pixels of context."""
-    H, W = img.shape
-    xa, ya, xb, yb = max(0, x - pad), max(0, y - pad), min(W, x + w + pad), min(H, y + h + pad)
-    f, _ = robust_image(img[ya:yb, xa:xb], valid[ya:yb, xa:xb], kind)
-    return f[y - ya:y - ya + h, x - xa:x - xa + w]
-
-
 class AreaMatcherBase(SceneMatcher):
     """Shared coarse-to-fine machinery; subclasses implement `_global`."""
 
     class Params(ParamsModel):
         feature: str = "gradmag"  # appearance-robust image: gradmag | clahe
         coarse_size_px: int = 256  # the coarse level's larger side is at most this
-        tiles_x: int = 7  # candidate tile grid
+        tiles_x: int = 9  # candidate tile grid
         tiles_y: int = 5
-        max_tiles: int = 16  # the most textured valid candidates are refined
+        max_tiles: int = 30  # the most textured valid candidates are refined
         tile_px: int = 96  # tile side at full resolution (smaller when the frame is small)
-        tile_radius_px: int = 3  # search radius of tiles per level (+2 at the coarsest level)
         min_tile_ncc: float = 0.15
-        ransac_px: float = 2.0
+        tile_radius_coarse: float = 0.6  # tiles search this many coarse-level px (+1 full-res px) around the global placement
+        consensus_px: float = 3.0  # tiles within this of a tile's offset support it
+        inlier_px: float = 1.5  # final inliers: within this of the affine fit of the supporters
+        min_inliers: int = 4
 
     def __init__(self, params=None, *, ctx=None):
         self.p = params if params is not None else self.Params()
@@ -115,105 +102,23 @@ class AreaMatcherBase(SceneMatcher):
             return None
         off_L, peak, second = g_res
         q_global = distinctiveness(peak, second)
-        ortho_px, map_px, tile_ncc = self._tiles(pyr_o, pyr_m, coarse_o, coarse_m, origin, off_L * s, L)
         offset = off_L * s
-        cov = np.eye(2) * (0.5 * s) ** 2
-        n_in, inlier_frac = 0, 0.0
-        if len(ortho_px) >= 8:  # tiles agree on one homography (smooth distortion allowed)
-            H, inl = cv2.findHomography(ortho_px, map_px, cv2.USAC_MAGSAC, p.ransac_px)
-            inl = np.zeros(len(ortho_px), bool) if H is None else inl.ravel().astype(bool)
-        elif len(ortho_px) >= 3:  # too few for a homography: agree on the median shift
-            d = map_px - ortho_px
-            inl = np.hypot(*(d - np.median(d, axis=0)).T) < 2.0 * p.ransac_px
-        else:
-            inl = np.zeros(len(ortho_px), bool)
-        if inl.any():
-            n_in, inlier_frac = int(inl.sum()), float(inl.mean())
-            ortho_px, map_px = ortho_px[inl], map_px[inl]
-            offset = np.median(map_px - ortho_px - origin, axis=0)
-            if n_in >= 8:
-                pred = cv2.perspectiveTransform(ortho_px[:, None, :], H)[:, 0, :]
-                dof = n_in - 8
-            else:
-                pred = ortho_px + np.median(map_px - ortho_px, axis=0)
-                dof = n_in - 1
-            resid = map_px - pred
-            var = float((resid**2).sum()) / (2 * dof) if dof > 0 else 0.25
-            cov = np.eye(2) * max(var, 0.05)
-        else:
-            ortho_px = map_px = np.zeros((0, 2))
-        # A unique global peak, tiles that agree, and enough of them.
-        quality = q_global * inlier_frac * min(1.0, n_in / 8.0)
-        return MatchResult(offset, ortho_px if len(ortho_px) else None, map_px if len(map_px) else None,
-                           float(np.clip(quality, 0, 1)), cov, float(peak), self.registered_name)
-
-    def _tiles(self, pyr_o, pyr_m, coarse_o, coarse_m, origin0, offset0, L):
-        """Coarse-to-fine tile search; returns (ortho_px, map_px, ncc) at full resolution.
-
-        Candidate tiles lie on a tiles_x x tiles_y grid; those fully inside the valid ortho area
-        are ranked by texture (coarse feature variance) and the best max_tiles are refined.
-        Levels visited: L (whole-image coarse features), L-2 when L >= 4, then 0 (features on
-        crops around each tile only). The radius at each finer level covers the coarser level's
-        half-pixel uncertainty plus tile_radius_px."""
-        p = self.p
-        v0 = pyr_o[0][1]
-        Ho, Wo = v0.shape
-        sL = 2**L
-        T0 = int(min(p.tile_px, Wo // max(2, p.tiles_x - 1), Ho // max(2, p.tiles_y - 1))) // sL * sL
-        empty = np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0)
-        if T0 < max(16, 8 * sL):
-            return empty
-        cands = []
-        for j in range(p.tiles_y):
-            for i in range(p.tiles_x):
-                x0 = int(round(i * (Wo - T0) / max(1, p.tiles_x - 1))) // sL * sL
-                y0 = int(round(j * (Ho - T0) / max(1, p.tiles_y - 1))) // sL * sL
-                if v0[y0:y0 + T0, x0:x0 + T0].mean() < 0.98:
-                    continue
-                tex = float(coarse_o[0][y0 // sL:(y0 + T0) // sL, x0 // sL:(x0 + T0) // sL].var())
-                cands.append((tex, x0, y0))
-        cands.sort(reverse=True)
-        levels = [L] + ([L - 2] if L >= 4 else []) + ([0] if L > 0 else [])
-        o_list, m_list, n_list = [], [], []
-        for _, x0, y0 in cands[: p.max_tiles]:
-            off = np.array(offset0, float)  # full-resolution offset of this tile
-            ncc, prev = -1.0, None
-            for lev in levels:
-                s = 2**lev
-                T = T0 // s
-                go, vo = pyr_o[lev]
-                gm, vm = pyr_m[lev]
-                tx, ty = x0 // s, y0 // s
-                r = p.tile_radius_px + (2 if prev is None else 2 ** (prev - lev) // 2)
-                prev = lev
-                mx = int(round(tx + (origin0[0] + off[0]) / s)) - r
-                my = int(round(ty + (origin0[1] + off[1]) / s)) - r
-                if mx < 0 or my < 0 or mx + T + 2 * r > gm.shape[1] or my + T + 2 * r > gm.shape[0] \
-                        or vm[my:my + T + 2 * r, mx:mx + T + 2 * r].mean() < 0.95:
-                    ncc = -1.0
-                    break
-                if lev == L:
-                    tmpl = coarse_o[0][ty:ty + T, tx:tx + T]
-                    region = coarse_m[0][my:my + T + 2 * r, mx:mx + T + 2 * r]
-                else:
-                    tmpl = feature_crop(go, vo, tx, ty, T, T, p.feature)
-                    region = feature_crop(gm, vm, mx, my, T + 2 * r, T + 2 * r, p.feature)
-                if float(tmpl.std()) < 1e-4:
-                    ncc = -1.0
-                    break
-                res = cv2.matchTemplate(region, tmpl, cv2.TM_CCOEFF_NORMED)
-                _, ncc, _, (px, py) = cv2.minMaxLoc(res)
-                sx, sy = subpixel_peak(res, px, py)
-                off = np.array([(mx + sx - tx) * s - origin0[0], (my + sy - ty) * s - origin0[1]])
-            if ncc < p.min_tile_ncc:
-                continue
-            c = np.array([x0 + (T0 - 1) / 2.0, y0 + (T0 - 1) / 2.0])
-            o_list.append(c)
-            m_list.append(c + origin0 + off)
-            n_list.append(ncc)
-        if not o_list:
-            return empty
-        return np.array(o_list), np.array(m_list), np.array(n_list)
+        T0, cand = tile_grid(pyr_o[0][1], coarse_o[0], int(s), p.tile_px, p.tiles_x, p.tiles_y, p.max_tiles)
+        tm = refine_tiles(pyr_o, pyr_m, origin, offset, p.tile_radius_coarse * s + 1.0, cand, T0, p.feature, p.min_tile_ncc)
+        con = tile_consensus(tm, p.consensus_px, p.inlier_px)
+        if con is None or con.inliers.sum() < p.min_inliers:
+            # No agreeing tiles: the coarse placement alone, with its coarse uncertainty and a
+            # quality under the usual floor (a lone global peak is not trusted by default).
+            cov = np.eye(2) * (0.5 * s) ** 2
+            return MatchResult(offset, None, None, float(0.1 * q_global), cov, float(peak), self.registered_name)
+        inl = con.inliers
+        o_px, m_px = tm.ortho_px[inl], tm.map_px[inl]
+        offset = np.median(m_px - o_px - origin, axis=0)
+        n_in = int(inl.sum())
+        # Tiles that agree (the NCC-weighted share), and enough of them.
+        quality = con.support * min(1.0, n_in / 8.0)
+        return MatchResult(offset, o_px, m_px, float(np.clip(quality, 0, 1)), np.eye(2) * con.var_px2, float(peak),
+                           self.registered_name)
 
     def _global(self, f_o, f_m, origin, radius):
         raise NotImplementedError

@@ -46,6 +46,7 @@ class IsmnParams(ParamsModel):
     min_correspondences: int = 6
     pose_method: Literal["map", "opencv"] = "map"
     use_attitude_prior: bool = True  # MAP pose with the INS attitude covariance as prior
+    att_prior_floor_deg: float = 0.1  # added (in quadrature) to the INS attitude sigma in the prior
     sigma_floor_m: float = 1.0  # floor of the horizontal sigma (map georeference, model errors)
     sigma_img_px: float = 0.5  # image-side noise of a correspondence (full-resolution px)
     max_jump_factor: float = 1.5  # reject fixes farther from the estimate than this x window margin
@@ -176,7 +177,10 @@ class IsmnPipeline:
         down = np.full_like(north, ground_down) if height_fn is None else height_fn(north, east)
         X = np.c_[north, east, down]
         sigma_px = math.sqrt(max(float(np.linalg.eigvalsh(res.cov_px2).max()), 1e-4))
-        att_cov = np.asarray(estimate.cov_att_rad2, float) if p.use_attitude_prior else None
+        # The INS attitude as a prior, widened by a floor: a filter that is too sure of its
+        # attitude would otherwise turn its attitude error into a position error of the fix.
+        att_cov = (np.asarray(estimate.cov_att_rad2, float) + math.radians(p.att_prior_floor_deg) ** 2 * np.eye(3)
+                   if p.use_attitude_prior else None)
         sol = solve_camera_pose(X, uv, self.camera.K, centre, R_nc, sigma_px * g, att_cov,
                                 sigma_img_px=p.sigma_img_px, method=p.pose_method)
         t4 = time.perf_counter()
