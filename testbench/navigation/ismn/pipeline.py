@@ -23,6 +23,7 @@ from testbench.core.camera_geometry import CameraMount, PinholeCamera, camera_po
 from testbench.core.messages import NavEstimate, PositionFix
 from testbench.core.registry import ParamsModel
 from testbench.navigation.ismn.area import NccMatcher
+from testbench.navigation.ismn.mapcache import MapWindowCache, quantise_gsd
 from testbench.navigation.ismn.geometry import estimate_pose, footprint_bounds, nadir_gsd_m, predict_search_window
 from testbench.navigation.ismn.ortho import Orthorectifier, to_grey_u8
 from testbench.navigation.ismn.pose import solve_camera_pose
@@ -52,6 +53,7 @@ class IsmnParams(ParamsModel):
     max_jump_factor: float = 1.5  # reject fixes farther from the estimate than this x window margin
     thumb_px: int = 320  # width of the frame thumbnail kept in the diagnostics
     keep_images: bool = True  # keep ortho / map window / thumbnail in the diagnostics
+    cache_map: bool = True  # serve search windows from a larger cached map read (see mapcache)
 
 
 class IsmnPipeline:
@@ -68,6 +70,7 @@ class IsmnPipeline:
         self.matcher = matcher if matcher is not None else NccMatcher()
         self.p = params if params is not None else IsmnParams()
         self.ortho = Orthorectifier(camera, math.radians(self.p.max_off_nadir_deg))
+        self._maps = MapWindowCache(reference_map) if self.p.cache_map else None
 
     # -- helpers -------------------------------------------------------------------------------
     def _ground(self, centre, R_nc):
@@ -102,7 +105,9 @@ class IsmnPipeline:
         g = self.p.gsd_m or getattr(rm, "gsd_m", None) or getattr(rm, "native_gsd_m", None) or nadir_gsd_m(self.camera, height_m)
         g = max(float(g), nadir_gsd_m(self.camera, height_m) if self.p.gsd_m is None else 0.0)
         extent = max(fp[1] - fp[0], fp[3] - fp[2])
-        return max(g, extent / self.p.max_ortho_px)
+        # Quantised (steps of 2^(1/8)) so that successive frames share the cached map window.
+        native = self.p.gsd_m or getattr(rm, "gsd_m", None) or getattr(rm, "native_gsd_m", None)
+        return quantise_gsd(max(g, extent / self.p.max_ortho_px), native)
 
     # -- the pipeline --------------------------------------------------------------------------
     def process(self, frame_image: np.ndarray, t_s: float, estimate: NavEstimate) -> tuple[PositionFix | None, IsmnDiagnostics]:
@@ -127,7 +132,10 @@ class IsmnPipeline:
         win = predict_search_window(estimate, self.camera, self.mount, ground_down, g, n_sigma=p.n_sigma,
                                     margin_m=p.margin_m, max_off_nadir_rad=self.ortho.max_off_nadir_rad)
         b = win.bounds_ne_m
-        mapw = self.reference_map.read_local(b[0], b[1], b[2], b[3], g)
+        if self._maps is not None:
+            mapw = self._maps.read(b[0], b[1], b[2], b[3], g)
+        else:
+            mapw = self.reference_map.read_local(b[0], b[1], b[2], b[3], g)
         g = mapw.gsd_m
         Hw, Ww = mapw.shape
         r0 = max(0, int(math.floor((mapw.north0_m - fp[1]) / g)))

@@ -1,0 +1,66 @@
+"""A large reference-map window kept across frames, so that each frame's search window is a
+crop instead of a fresh read (reprojecting a GeoTIFF window costs ~100 ms per frame).
+
+The cache holds one grey window per ground sample; a request inside it is served as a view.
+A crop lies on the cached grid, so its north-west corner can differ from the requested bounds
+by up to one pixel (it always covers them); callers use the returned raster's own geometry.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from testbench.navigation.ismn.ortho import to_grey_u8
+from testbench.world.raster import LocalRaster
+
+
+def quantise_gsd(gsd_m: float, native_gsd_m: float | None, steps_per_octave: int = 8) -> float:
+    """Round a ground sample up to native * 2^(k / steps_per_octave) so that nearby requests
+    share one cached window (no change when it equals the native sample)."""
+    if not native_gsd_m or gsd_m <= native_gsd_m * (1 + 1e-9):
+        return float(gsd_m)
+    k = math.ceil(steps_per_octave * math.log2(gsd_m / native_gsd_m) - 1e-9)
+    return float(native_gsd_m * 2.0 ** (k / steps_per_octave))
+
+
+class MapWindowCache:
+    """Grey reference-map windows served from one larger cached read per ground sample.
+
+    source: anything with read_local(north_min, north_max, east_min, east_max, gsd_m) ->
+    LocalRaster; grow: the cached read extends every side by grow x the request's larger
+    extent; max_side_px: the cached read's larger side is at most this (else read as asked).
+    """
+
+    def __init__(self, source, grow: float = 0.5, max_side_px: int = 6000):
+        self.source = source
+        self.grow = float(grow)
+        self.max_side_px = int(max_side_px)
+        self._cache: dict[float, LocalRaster] = {}
+
+    def read(self, north_min: float, north_max: float, east_min: float, east_max: float, gsd_m: float) -> LocalRaster:
+        """LocalRaster (grey (H, W) uint8 data, valid) covering the bounds at gsd_m."""
+        c = self._cache.get(gsd_m)
+        if c is None or not _covers(c, north_min, north_max, east_min, east_max):
+            m = self.grow * max(north_max - north_min, east_max - east_min)
+            if max(north_max - north_min, east_max - east_min) + 2 * m > self.max_side_px * gsd_m:
+                m = 0.0
+            r = self.source.read_local(north_min - m, north_max + m, east_min - m, east_max + m, gsd_m)
+            c = LocalRaster(to_grey_u8(r.data), np.asarray(r.valid, bool), r.north0_m, r.east0_m, r.gsd_m)
+            if len(self._cache) > 4:
+                self._cache.clear()
+            self._cache[gsd_m] = c
+        g = c.gsd_m
+        r0 = max(0, int(math.floor((c.north0_m - north_max) / g + 1e-9)))
+        c0 = max(0, int(math.floor((east_min - c.east0_m) / g + 1e-9)))
+        r1 = min(c.shape[0], int(math.ceil((c.north0_m - north_min) / g - 1e-9)))
+        c1 = min(c.shape[1], int(math.ceil((east_max - c.east0_m) / g - 1e-9)))
+        return LocalRaster(c.data[r0:r1, c0:c1], c.valid[r0:r1, c0:c1], c.north0_m - r0 * g, c.east0_m + c0 * g, g)
+
+
+def _covers(r: LocalRaster, n0: float, n1: float, e0: float, e1: float) -> bool:
+    g = r.gsd_m
+    tol = 1e-6 * g
+    return (r.north0_m >= n1 - tol and r.north0_m - r.shape[0] * g <= n0 + tol
+            and r.east0_m <= e0 + tol and r.east0_m + r.shape[1] * g >= e1 - tol)
