@@ -137,6 +137,7 @@ class JSBSimDynamics(Dynamics):
         self._n_motors = len(self.aircraft_meta.get("motors", ())) if self.kind == "multirotor" else 0
         self._frame = LocalTangentFrame(origin.lat_rad, origin.lon_rad, origin.alt_m)
         self._truth: TruthState | None = None
+        self._applied: SurfaceCommand | RotorCommand | None = None
 
     # -- Dynamics interface -------------------------------------------------------------
 
@@ -188,8 +189,9 @@ class JSBSimDynamics(Dynamics):
     def advance(self, command: SurfaceCommand | RotorCommand | None, n_steps: int) -> None:
         """Run n_steps physics steps holding `command` (None: keep the last one) without
         building a TruthState; cheap checks every step, full checks in `truth()`."""
-        if command is not None:
+        if command is not None and command is not self._applied:
             self._apply(command)
+            self._applied = command  # commands are frozen: the same object needs no rewrite
         run = self.fdm.run
         alt_node = self._nodes[2]
         for _ in range(n_steps):
@@ -237,7 +239,7 @@ class JSBSimDynamics(Dynamics):
         v = [n.get_double_value() for n in self._nodes]
         (lat, lon, alt_ft, vn, ve, vd, phi, theta, psi, p, q, r, pi, qi, ri, nx, ny, nz, vt, p_psf, t_r, t_s) = v
         t_s = round(t_s, 9)
-        if not all(math.isfinite(x) for x in v):
+        if not math.isfinite(sum(v)):  # any NaN or inf makes the sum non-finite
             raise SimulationAborted("NaN in the flight dynamics state", t_s=t_s, vehicle_id=self.vehicle_id)
         alt = alt_ft * FT_TO_M
         n_m, e_m, d_m = self._frame.geodetic_to_ned(lat, lon, alt)
