@@ -134,18 +134,19 @@ def merge_tiles(levels: np.ndarray, xs: np.ndarray, ys: np.ndarray) -> list[tupl
 def warp_ground(pyr: RasterPyramid, H_map: np.ndarray, width: int, height: int,
                 rects) -> np.ndarray:
     """(height, width, 4) RGBA warped from the pyramid, rectangle by rectangle."""
-    def warp(x0, y0, x1, y1, L):
+    def warp(x0, y0, x1, y1, L, dst=None):
         s = 0.5**L
         Hr = np.diag([s, s, 1.0]) @ H_map @ np.array([[1.0, 0, x0], [0, 1.0, y0], [0, 0, 1.0]])
-        return cv2.warpPerspective(pyr.levels[L], Hr, (x1 - x0, y1 - y0),
+        return cv2.warpPerspective(pyr.levels[L], Hr, (x1 - x0, y1 - y0), dst=dst,
                                    flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
                                    borderMode=cv2.BORDER_CONSTANT, borderValue=(0, 0, 0, 0))
 
     if len(rects) == 1 and rects[0][:4] == (0, 0, width, height):
         return warp(*rects[0])
-    out = np.zeros((height, width, 4), np.uint8)
+    covered = sum((x1 - x0) * (y1 - y0) for x0, y0, x1, y1, _ in rects)
+    out = np.empty((height, width, 4), np.uint8) if covered == width * height else np.zeros((height, width, 4), np.uint8)
     for x0, y0, x1, y1, L in rects:
-        out[y0:y1, x0:x1] = warp(x0, y0, x1, y1, L)
+        warp(x0, y0, x1, y1, L, out[y0:y1, x0:x1])  # straight into the frame (a strided view)
     return out
 
 
@@ -191,7 +192,11 @@ def render_plane(camera: PinholeCamera, centre_ned_m, R_nc, pyr: RasterPyramid,
     valid = has_data & ground
     # Sky colour and haze on a coarse grid.
     need_haze = opts.haze_visibility_m is not None
-    if sky.any() or need_haze:
+    if not need_haze and not sky.any():
+        nodata = ~(valid | sky)
+        if nodata.any():
+            rgb[nodata] = 0  # black, as apply_sky_and_haze leaves it
+    else:
         cu, cv_ = coarse_axes(W, H, COARSE_PX)
         U, V = np.meshgrid(cu, cv_)
         P = np.stack([U, V, np.ones_like(U)], axis=-1)

@@ -51,6 +51,9 @@ def _flat(cam: PinholeCamera, C, R_nc, pyr, ground_down_m: float, opts, want_poi
         flags = valid_i.view(np.uint8) | (sky_i.view(np.uint8) << 1)
         flags = cv2.remap(flags, dr.map1, dr.map2, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT)
         valid, sky = (flags & 1).astype(bool), (flags & 2).astype(bool)
+        nodata = ~(valid | sky)
+        if nodata.any():
+            rgb[nodata] = 0  # the linear resampling blurs black no-data into its border
     # Camera depth of the ground at a pixel, for hiding vehicles below the horizon of terrain.
     r_down = np.asarray(R_nc, float)[2]  # down component of a camera-frame ray
     h = view.h_m
