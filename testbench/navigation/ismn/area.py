@@ -50,18 +50,42 @@ def as_u8(img: np.ndarray) -> np.ndarray:
     return np.clip(img * 255.0 + 0.5, 0, 255).astype(np.uint8)
 
 
-def pyramid(img: np.ndarray, valid: np.ndarray, levels: int):
-    """[(grey uint8, valid bool)] for levels 0..levels, level l reduced 2^l times (INTER_AREA)."""
-    out = [(img, valid)]
-    g, v8 = img, valid.astype(np.uint8) * 255
-    for _ in range(levels):
-        # Halve an even-sized crop: OpenCV's exact factor-2 INTER_AREA path is the fast one.
-        h, w = (g.shape[0] // 2) * 2, (g.shape[1] // 2) * 2
-        g = cv2.resize(g[:h, :w], None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
-        v8 = cv2.resize(v8[:h, :w], None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
-        v8 = np.where(v8 == 255, np.uint8(255), np.uint8(0))
-        out.append((g, v8 == 255))
-    return out
+class Pyramid:
+    """Levels 0..levels of a grey image and its valid mask, level l reduced 2^l times.
+
+    Levels are made on demand, each straight from level 0 by an exact-factor INTER_AREA resize
+    of the largest crop divisible by 2^l (one pass; the chained halving gives the same image);
+    a reduced pixel is valid only when every pixel it covers is. pyr[l] -> (grey uint8, valid).
+    """
+
+    def __init__(self, img: np.ndarray, valid: np.ndarray, levels: int):
+        self._levels: dict[int, tuple[np.ndarray, np.ndarray]] = {0: (img, valid)}
+        self._v255 = None
+        self.n = levels + 1
+
+    def __len__(self) -> int:
+        return self.n
+
+    def __getitem__(self, lev: int) -> tuple[np.ndarray, np.ndarray]:
+        if lev < 0 or lev >= self.n:
+            raise IndexError(lev)
+        out = self._levels.get(lev)
+        if out is None:
+            img, valid = self._levels[0]
+            if self._v255 is None:
+                self._v255 = valid.view(np.uint8) * np.uint8(255)
+            k = 2**lev
+            h, w = (img.shape[0] // k) * k, (img.shape[1] // k) * k
+            f = 1.0 / k
+            g = cv2.resize(img[:h, :w], None, fx=f, fy=f, interpolation=cv2.INTER_AREA)
+            v = cv2.resize(self._v255[:h, :w], None, fx=f, fy=f, interpolation=cv2.INTER_AREA) == 255
+            out = self._levels[lev] = (g, v)
+        return out
+
+
+def pyramid(img: np.ndarray, valid: np.ndarray, levels: int) -> Pyramid:
+    """Pyramid(img, valid, levels) (see Pyramid)."""
+    return Pyramid(img, np.ascontiguousarray(valid, dtype=bool), levels)
 
 
 class AreaMatcherBase(SceneMatcher):
@@ -104,7 +128,9 @@ class AreaMatcherBase(SceneMatcher):
         q_global = distinctiveness(peak, second)
         offset = off_L * s
         T0, cand = tile_grid(pyr_o[0][1], coarse_o[0], int(s), p.tile_px, p.tiles_x, p.tiles_y, p.max_tiles)
-        tm = refine_tiles(pyr_o, pyr_m, origin, offset, p.tile_radius_coarse * s + 1.0, cand, T0, p.feature, p.min_tile_ncc)
+        fm0 = prior.map_features(p.feature) if callable(prior.map_features) else None
+        tm = refine_tiles(pyr_o, pyr_m, origin, offset, p.tile_radius_coarse * s + 1.0, cand, T0, p.feature,
+                          p.min_tile_ncc, map_feat0=fm0)
         con = tile_consensus(tm, p.consensus_px, p.inlier_px)
         if con is None or con.inliers.sum() < p.min_inliers:
             # No agreeing tiles: the coarse placement alone, with its coarse uncertainty and a

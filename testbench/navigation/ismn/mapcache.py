@@ -38,6 +38,7 @@ class MapWindowCache:
         self.grow = float(grow)
         self.max_side_px = int(max_side_px)
         self._cache: dict[float, LocalRaster] = {}
+        self._features: dict[tuple[float, str], np.ndarray] = {}
 
     def read(self, north_min: float, north_max: float, east_min: float, east_max: float, gsd_m: float) -> LocalRaster:
         """LocalRaster (grey (H, W) uint8 data, valid) covering the bounds at gsd_m."""
@@ -50,13 +51,47 @@ class MapWindowCache:
             c = LocalRaster(to_grey_u8(r.data), np.asarray(r.valid, bool), r.north0_m, r.east0_m, r.gsd_m)
             if len(self._cache) > 4:
                 self._cache.clear()
+                self._features.clear()
             self._cache[gsd_m] = c
+            for k in [k for k in self._features if k[0] == gsd_m]:
+                del self._features[k]
         g = c.gsd_m
         r0 = max(0, int(math.floor((c.north0_m - north_max) / g + 1e-9)))
         c0 = max(0, int(math.floor((east_min - c.east0_m) / g + 1e-9)))
         r1 = min(c.shape[0], int(math.ceil((c.north0_m - north_min) / g - 1e-9)))
         c1 = min(c.shape[1], int(math.ceil((east_max - c.east0_m) / g - 1e-9)))
         return LocalRaster(c.data[r0:r1, c0:c1], c.valid[r0:r1, c0:c1], c.north0_m - r0 * g, c.east0_m + c0 * g, g)
+
+    def features(self, window: LocalRaster, kind: str) -> np.ndarray | None:
+        """Appearance-robust feature image (features.robust_image) of a window this cache
+        served, cut from the feature image of the whole cached read (computed once per read);
+        None when the window is not a crop of the current cache."""
+        c = self._cache.get(window.gsd_m)
+        at = None if c is None else _crop_of(c, window)
+        if at is None:
+            return None
+        f = self._features.get((window.gsd_m, kind))
+        if f is None:
+            from testbench.navigation.ismn.features import robust_image
+
+            f = robust_image(c.data, c.valid, kind)[0]
+            self._features[(window.gsd_m, kind)] = f
+        r0, c0 = at
+        return f[r0:r0 + window.shape[0], c0:c0 + window.shape[1]]
+
+
+def _crop_of(c: LocalRaster, r: LocalRaster) -> tuple[int, int] | None:
+    """(row, col) of raster r's first pixel inside the cached raster c, None if not a crop of it."""
+    g = c.gsd_m
+    if abs(r.gsd_m - g) > 1e-9 * g:
+        return None
+    r0 = round((c.north0_m - r.north0_m) / g)
+    c0 = round((r.east0_m - c.east0_m) / g)
+    if abs(c.north0_m - r0 * g - r.north0_m) > 1e-6 * g or abs(c.east0_m + c0 * g - r.east0_m) > 1e-6 * g:
+        return None
+    if r0 < 0 or c0 < 0 or r0 + r.shape[0] > c.shape[0] or c0 + r.shape[1] > c.shape[1]:
+        return None
+    return r0, c0
 
 
 def _covers(r: LocalRaster, n0: float, n1: float, e0: float, e1: float) -> bool:

@@ -48,7 +48,7 @@ class IsmnParams(ParamsModel):
     pose_method: Literal["map", "opencv"] = "map"
     use_attitude_prior: bool = True  # MAP pose with the INS attitude covariance as prior
     att_prior_floor_deg: float = 0.1  # added (in quadrature) to the INS attitude sigma in the prior
-    sigma_floor_m: float = 1.0  # floor of the horizontal sigma (map georeference, model errors)
+    sigma_floor_m: float = 0.3  # added to the sigma in quadrature (map georeference, model errors)
     sigma_img_px: float = 0.5  # image-side noise of a correspondence (full-resolution px)
     max_jump_factor: float = 1.5  # reject fixes farther from the estimate than this x window margin
     thumb_px: int = 320  # width of the frame thumbnail kept in the diagnostics
@@ -143,6 +143,9 @@ class IsmnPipeline:
         Ho = min(Hw - r0, int(math.ceil((fp[1] - fp[0]) / g)))
         Wo = min(Ww - c0, int(math.ceil((fp[3] - fp[2]) / g)))
         map_grey = to_grey_u8(mapw.data)
+        kind = getattr(getattr(self.matcher, "p", None), "feature", None)
+        if self._maps is not None and isinstance(kind, str):
+            self._maps.features(mapw, kind)  # once per cached read: part of the map access
         t1 = time.perf_counter()
         lat["window"] = 1e3 * (t1 - t0)
         if Ho < 16 or Wo < 16 or mapw.valid.mean() < 0.05:
@@ -154,7 +157,8 @@ class IsmnPipeline:
         t2 = time.perf_counter()
         lat["ortho"] = 1e3 * (t2 - t1)
 
-        prior = MatchPrior((float(c0), float(r0)), win.margin_m / g, of.valid, mapw.valid, g)
+        feats = (lambda kind, _w=mapw: self._maps.features(_w, kind)) if self._maps is not None else None
+        prior = MatchPrior((float(c0), float(r0)), win.margin_m / g, of.valid, mapw.valid, g, feats)
         res = self.matcher.match(of.image, map_grey, prior)
         t3 = time.perf_counter()
         lat["match"] = 1e3 * (t3 - t2)
@@ -173,6 +177,7 @@ class IsmnPipeline:
 
         # Correspondences: ortho px -> original camera px (through the estimated-pose mapping),
         # map px -> NE of the map window at the terrain height.
+        shared_px = 0.0  # error common to every correspondence (one offset for all of them)
         if res.ortho_px is not None and len(res.ortho_px) >= p.min_correspondences:
             o_px, m_px = res.ortho_px, res.map_px
         else:  # area match without tiles: a grid of valid ortho pixels shifted by the offset
@@ -180,6 +185,7 @@ class IsmnPipeline:
             sel = of.valid[gy, gx]
             o_px = np.c_[gx[sel], gy[sel]].astype(float)
             m_px = o_px + np.array([c0, r0]) + res.offset_px
+            shared_px = math.sqrt(max(float(np.linalg.eigvalsh(res.cov_px2).max()), 1e-4))
         uv = of.cam_xy_full(o_px[:, 0], o_px[:, 1])
         north, east = mapw.rowcol_to_ne(m_px[:, 1], m_px[:, 0])
         down = np.full_like(north, ground_down) if height_fn is None else height_fn(north, east)
@@ -202,10 +208,10 @@ class IsmnPipeline:
         jump = float(np.hypot(*(pos_fix[:2] - pos[:2])))
         if jump > p.max_jump_factor * win.margin_m + 2 * g:
             return fail(f"fix {jump:.0f} m from the estimate, outside the search window", **keep)
-        # Floor: the tiles share errors the solve cannot average (map georeference, unmodelled
-        # relief), so the horizontal sigma is at least one correspondence's and sigma_floor_m.
+        # Errors the solve cannot average are added: sigma_floor_m (map georeference, unmodelled
+        # relief, what the tiles share) and, without tiles, the one offset all points share.
         cov = sol.cov_centre_m2.copy()
-        floor = max(p.sigma_floor_m, sigma_px * g) ** 2
+        floor = p.sigma_floor_m**2 + (shared_px * g) ** 2
         cov[:2, :2] += floor * np.eye(2)
         cov[2, 2] += floor
         quality = float(res.quality * sol.inliers.mean())

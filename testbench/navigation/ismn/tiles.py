@@ -80,12 +80,14 @@ def tile_grid(valid0: np.ndarray, coarse_feat: np.ndarray, sL: int, tile_px: int
 
 
 def refine_tiles(pyr_o, pyr_m, origin0, offset0, radius0_px: float, tiles, T0: int, kind: str,
-                 min_ncc: float, final_radius_px: int = 2) -> TileMatches:
+                 min_ncc: float, final_radius_px: int = 2, map_feat0: np.ndarray | None = None) -> TileMatches:
     """Search each tile around the global placement (origin0 + offset0, full-resolution px).
 
     radius0_px: full-resolution uncertainty of offset0. The first level searched is the
     coarsest at which the tile is still >= 24 px and the radius <= 6 px; each finer level then
     searches final_radius_px around the previous result (plus the half pixel it had).
+    map_feat0: the map window's full-resolution feature image when the caller has it (crops of
+    it replace per-tile feature computation on the map side).
     """
     n_lev = len(pyr_o)
     lev0 = 0
@@ -110,7 +112,10 @@ def refine_tiles(pyr_o, pyr_m, origin0, offset0, radius0_px: float, tiles, T0: i
                 ncc = -1.0
                 break
             tmpl = feature_crop(go, vo, tx, ty, T, T, kind)
-            region = feature_crop(gm, vm, mx, my, T + 2 * r, T + 2 * r, kind)
+            if lev == 0 and map_feat0 is not None:
+                region = map_feat0[my:my + T + 2 * r, mx:mx + T + 2 * r]
+            else:
+                region = feature_crop(gm, vm, mx, my, T + 2 * r, T + 2 * r, kind)
             if float(tmpl.std()) < 1e-4 or float(region.std()) < 1e-4:
                 ncc = -1.0
                 break

@@ -69,7 +69,9 @@ class MatchPrior:
 
     origin_px (2,): predicted (col, row) of the ortho frame's pixel (0, 0) in the map window;
     search_radius_px: how far from it the true placement may be (3 sigma + margin);
-    ortho_valid (H, W) bool and map_valid (Hm, Wm) bool masks; gsd_m: metres per pixel.
+    ortho_valid (H, W) bool and map_valid (Hm, Wm) bool masks; gsd_m: metres per pixel;
+    map_features: optional callable kind -> (Hm, Wm) float32 feature image of the map window
+    (features.robust_image), precomputed by the caller (a cached map), or None.
     """
 
     origin_px: tuple[float, float]
@@ -77,6 +79,7 @@ class MatchPrior:
     ortho_valid: np.ndarray | None = None
     map_valid: np.ndarray | None = None
     gsd_m: float = 1.0
+    map_features: object = None
 
 
 @dataclass(frozen=True)
