@@ -86,7 +86,10 @@ class RelnavAid(NavigationAid):
     detector's centre lies on a neighbour relative to its CG, its body axes: e.g. the LED
     centroid; rotated with our own attitude, the neighbour's being unknown), led_rate_hz (default: the
     first camera's rate), range_max_age_s (a range this recent may start a filter with a
-    bearing), stale_after_s (a neighbour with no update for this long leaves the table),
+    bearing), stale_after_s (a neighbour with no update for this long is forgotten),
+    report_max_age_s (the NeighbourTable holds only neighbours with both a bearing and a range
+    fused within this age: with one of them missing the estimate drifts along the unobserved
+    direction, e.g. along the line of sight beyond UWB range),
     predicted_association (an undecoded track may feed the neighbour it uniquely matches, when
     that neighbour's estimate is settled: sigma below assoc_max_sigma_m), reset_after_rejects
     (a neighbour whose bearings were rejected this many times in a row, or whose ranges were
@@ -106,6 +109,7 @@ class RelnavAid(NavigationAid):
         led_rate_hz: float | None = pydantic.Field(None, gt=0)
         range_max_age_s: float = pydantic.Field(0.5, gt=0)
         stale_after_s: float = pydantic.Field(5.0, gt=0)
+        report_max_age_s: float = pydantic.Field(1.0, gt=0)
         predicted_association: bool = True
         assoc_max_sigma_m: float = pydantic.Field(1.0, gt=0)
         reset_after_rejects: int = pydantic.Field(5, ge=1)
@@ -152,6 +156,8 @@ class RelnavAid(NavigationAid):
         self.filters: dict[str, NeighbourFilter] = {}
         self.id_conf: dict[str, float] = {}
         self.last_range: dict[str, tuple[float, float]] = {}
+        # Diagnostics only: did the last bearing fused for a peer come from that peer (frame truth)?
+        self.bearing_id_ok: dict[str, float] = {}
         self.last_estimate: NavEstimate | None = None
         self.t_s = 0.0
         self._next_log_t = 0.0
@@ -224,8 +230,8 @@ class RelnavAid(NavigationAid):
         for tr in sorted((x for x in updated if x.confirmed), key=lambda x: -x.id_confidence):
             det = tr.last_detection
             peer = self.ids[tr.id_index] if tr.id_index is not None else None
+            truth_id = id_check(det, truths) if truths else None  # scoring only, never fused
             if truths:
-                truth_id = id_check(det, truths)
                 if peer is not None and truth_id is not None:
                     self.counters["id_checks"] += 1
                     self.counters["id_wrong"] += int(peer != truth_id)
@@ -253,10 +259,13 @@ class RelnavAid(NavigationAid):
                     continue
             _, ok = f.update_bearing(t, m_xy, R_nc, c_off, focal, att_sigma)
             self.counters["bearings_used"] += int(ok)
+            if ok and truth_id is not None:
+                self.bearing_id_ok[peer] = float(truth_id == peer)
         self._drop_stale(t)
         if t + 1e-9 >= self._next_log_t:
             self._next_log_t = t + 1.0 / self.params.log_rate_hz
             diag.table = self.controller_input(t)
+            diag.id_correct = {p: self.bearing_id_ok.get(p, float("nan")) for p in diag.table}
         return diag
 
     def _with_led_level(self, det, part) -> "Detection":
@@ -376,11 +385,14 @@ class RelnavAid(NavigationAid):
         return out
 
     def controller_input(self, t_s: float | None = None) -> NeighbourTable:
-        """Current NeighbourTable, each estimate extrapolated (constant relative velocity) to
-        t_s (default: the latest measurement time)."""
+        """Current NeighbourTable (neighbours observed in bearing and range within
+        report_max_age_s), each estimate extrapolated (constant relative velocity) to t_s
+        (default: the latest measurement time)."""
         t = self.t_s if t_s is None else float(t_s)
         table: NeighbourTable = {}
         for peer, f in self.filters.items():
+            if t - min(f.last_bearing_t_s, f.last_range_t_s) > self.params.report_max_age_s:
+                continue  # not observed in both bearing and range lately (see report_max_age_s)
             dt = max(t - f.t_s, 0.0)
             F = np.eye(6)
             F[:3, 3:] = dt * np.eye(3)

@@ -41,11 +41,15 @@ def id_check(det: Detection | None, truths: Sequence[Any]) -> str | None:
 @dataclass
 class RelnavDiagnostics:
     """Diagnostics of one processed camera frame. table: the NeighbourTable logged at this
-    frame (None between log ticks); id_rows: ID checks against the frame's truth."""
+    frame (None between log ticks); id_rows: ID checks against the frame's truth; id_correct:
+    per logged peer, 1.0 when the last bearing fused for it came from that vehicle according
+    to the frame's truth annotations (0.0 when from another, nan when unknown); column
+    "id_correct" of table "relnav" (scored as relnav.id_correct_rate)."""
 
     t_s: float
     table: NeighbourTable | None = None
     id_rows: list[dict] = field(default_factory=list)
+    id_correct: dict[str, float] = field(default_factory=dict)
 
     def event_rows(self, vehicle_id: str) -> list[tuple[str, dict]]:
         """Rows for the recorder: ("relnav", {...}) per neighbour, ("relnav_id", {...}) per check."""
@@ -57,6 +61,7 @@ class RelnavDiagnostics:
                 est_vn_mps=float(e.vel_ned_mps[0]), est_ve_mps=float(e.vel_ned_mps[1]), est_vd_mps=float(e.vel_ned_mps[2]),
                 sigma_m=e.sigma_m, id_confidence=float(e.id_confidence),
                 bearing_age_s=float(e.t_s - e.last_bearing_t_s), range_age_s=float(e.t_s - e.last_range_t_s),
+                id_correct=float(self.id_correct.get(peer, NAN)),
                 truth_north_m=NAN, truth_east_m=NAN, truth_down_m=NAN)))
         for r in self.id_rows:
             rows.append(("relnav_id", dict(vehicle_id=vehicle_id, **r)))
