@@ -183,9 +183,12 @@ def render_relief(camera: PinholeCamera, centre_ned_m, R_nc, pyr: RasterPyramid,
 
     coarse = np.ascontiguousarray(np.stack([col_c, row_c], axis=-1), np.float32)
     maps = upsample(coarse, W, H, k)
-    hit = upsample(hit2.astype(np.float32), W, H, k, cv2.INTER_NEAREST) > 0.5
+    hit = upsample(hit2.view(np.uint8), W, H, k, cv2.INTER_NEAREST).view(bool)
     if refine.any():
-        pix = np.kron(refine, np.ones((k, k), bool))[:H, :W]
+        # Cell (j, i) covers pixels [j k, (j + 1) k) x [i k, (i + 1) k): nearest-neighbour
+        # resize by the integer factor k (src = floor(dst / k)).
+        r8 = refine.view(np.uint8)
+        pix = cv2.resize(r8, (r8.shape[1] * k, r8.shape[0] * k), interpolation=cv2.INTER_NEAREST)[:H, :W].view(bool)
         vv, uu = np.nonzero(pix)
         xy = normalized_grid(camera)[vv, uu]
         d_r = _dirs(xy, R_nc)

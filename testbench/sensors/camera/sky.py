@@ -94,12 +94,13 @@ def apply_sky_and_haze(rgb: np.ndarray, sky: np.ndarray, ground: np.ndarray,
         if box is not None:
             x0, y0, x1, y1 = box
             # rgb (1 - a) + horizon a, in 8-bit fixed point (a in 1/255 steps, <= 1 DN error).
-            a = np.clip(np.asarray(alpha_c, np.float32), 0.0, 1.0)[..., None]
-            keep_c = np.repeat(np.rint(255.0 * (1.0 - a)), 3, axis=-1).astype(np.uint8)
-            add_c = np.rint(a * np.asarray(opts.sky_horizon_rgb, np.float32)).astype(np.uint8)
+            a8 = np.rint(255.0 * np.clip(np.asarray(alpha_c, np.float32), 0.0, 1.0)).astype(np.uint8)
+            a = smooth_upsample(a8, box, step)  # one channel: resizing three costs 3x
+            keep = cv2.bitwise_not(a)  # 255 - a
+            haze = cv2.merge([cv2.convertScaleAbs(a, alpha=c / 255.0) for c in opts.sky_horizon_rgb])
             part = rgb[y0:y1, x0:x1]
-            cv2.multiply(part, smooth_upsample(keep_c, box, step), dst=part, scale=1.0 / 255.0)
-            cv2.add(part, smooth_upsample(add_c, box, step), dst=part)
+            cv2.multiply(part, cv2.merge([keep, keep, keep]), dst=part, scale=1.0 / 255.0)
+            cv2.add(part, haze, dst=part)
     # No-data ground is black (the warp leaves a fade where partly covered pixels blend in).
     nodata = ~(ground | sky)
     if nodata.any():
