@@ -150,6 +150,24 @@ def warp_ground(pyr: RasterPyramid, H_map: np.ndarray, width: int, height: int,
     return out
 
 
+def samples_inside_map(pyr: RasterPyramid, H_map: np.ndarray, rects) -> bool:
+    """True when every pixel of the rectangles samples its pyramid level strictly inside the
+    level's pixel grid (the frame's footprint is a convex quadrilateral on the plane, so the
+    corners decide; the rectangles must hold ground only, w > 0)."""
+    for x0, y0, x1, y1, L in rects:
+        u = np.array([x0, x1 - 1, x0, x1 - 1], float)
+        v = np.array([y0, y0, y1 - 1, y1 - 1], float)
+        p = H_map @ np.vstack([u, v, np.ones(4)])
+        if not (p[2] > 0).all():
+            return False
+        s = 0.5**L
+        col, row = s * p[0] / p[2], s * p[1] / p[2]
+        h, w = pyr.levels[L].shape[:2]
+        if not ((col >= 0).all() and (col <= w - 1).all() and (row >= 0).all() and (row <= h - 1).all()):
+            return False
+    return True
+
+
 def ground_sky_masks(view: PlaneView, width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
     """(ground, sky) (H, W) bool masks from the clip lines; exact per pixel, evaluated only in
     the bands of rows that a line crosses."""
@@ -187,9 +205,12 @@ def render_plane(camera: PinholeCamera, centre_ned_m, R_nc, pyr: RasterPyramid,
     rects = merge_tiles(levels, xs, ys)
     rgba = warp_ground(pyr, view.H_map, W, H, rects) if rects else np.zeros((H, W, 4), np.uint8)
     rgb = cv2.cvtColor(rgba, cv2.COLOR_RGBA2RGB)
-    has_data = cv2.extractChannel(rgba, 3) >= 128
     ground, sky = ground_sky_masks(view, W, H)
-    valid = has_data & ground
+    full = bool(rects) and sum((x1 - x0) * (y1 - y0) for x0, y0, x1, y1, _ in rects) == W * H
+    if full and pyr.all_valid and ground.all() and samples_inside_map(pyr, view.H_map, rects):
+        valid = ground  # every sample inside a fully valid map: alpha is 255 throughout
+    else:
+        valid = (cv2.extractChannel(rgba, 3) >= 128) & ground
     # Sky colour and haze on a coarse grid.
     need_haze = opts.haze_visibility_m is not None
     if not need_haze and not sky.any():

@@ -42,6 +42,9 @@ class RasterPyramid:
 
     def __init__(self, raster: LocalRaster):
         level = imagery_rgba(raster)
+        # All data valid: alpha is 255 wherever a warp samples inside the map (pyrDown reflects
+        # at the borders, so coarse levels keep it), and a renderer may skip reading it.
+        self.all_valid = bool(np.asarray(raster.valid, bool).all())
         self.levels: list[np.ndarray] = [level]
         while min(level.shape[:2]) >= 2 * _MIN_LEVEL_PX:
             level = cv2.pyrDown(level)
