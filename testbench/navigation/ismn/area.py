@@ -4,10 +4,15 @@
 1. Global placement at a coarse pyramid level: the whole ortho frame (masked template) against
    the map window, restricted to the search radius; sub-pixel peak by quadratic fits; peak
    quality from the peak-to-second-peak ratio (second peak outside an exclusion radius).
-2. Local refinement: a grid of tiles, each searched a few pixels around its predicted place at
-   every finer level down to full resolution. The tiles follow the smooth distortion an attitude
-   error leaves in the ortho view, and become correspondences (ortho px <-> map px) for the
-   pose solve. A RANSAC homography keeps the tiles that agree.
+2. Local refinement (tiles.py): a grid of tiles, the most textured valid ones, each searched
+   on its own at full resolution within the global placement's uncertainty (sub-pixel peak).
+   Independent tiles that agree tell a true placement from a false peak: an NCC-weighted
+   translation vote picks the supporters, an affine IRLS fit (the smooth distortion an
+   attitude error leaves in the ortho view) keeps the inliers, and its residuals give the
+   per-correspondence variance. The inliers are the correspondences for the pose solve.
+   Without agreeing tiles the coarse placement alone is returned with a quality below the
+   usual floor (no fix by default).
+Quality = NCC-weighted share of agreeing tiles x min(1, inliers / 8).
 """
 
 from __future__ import annotations
