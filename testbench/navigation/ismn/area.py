@@ -101,7 +101,7 @@ class AreaMatcherBase(SceneMatcher):
         coarse_size_px: int = 256  # the coarse level's larger side is at most this
         tiles_x: int = 9  # candidate tile grid
         tiles_y: int = 5
-        max_tiles: int = 30  # the most textured valid candidates are refined
+        max_tiles: int = 24  # the most textured valid candidates are refined (latency ~0.5 ms each)
         tile_px: int = 96  # tile side at full resolution (smaller when the frame is small)
         min_tile_ncc: float = 0.15
         tile_radius_coarse: float = 0.6  # tiles search this many coarse-level px (+1 full-res px) around the global placement
