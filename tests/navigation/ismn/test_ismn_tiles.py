@@ -88,3 +88,23 @@ def test_map_cache_covers_request(grow):
     src = RasterMapSource(LocalRaster(data, np.ones((200, 200), bool), 150.0, -150.0, 1.5))
     r = MapWindowCache(src, grow=grow).read(-10.3, 20.7, 5.1, 33.3, 1.5)
     assert r.north0_m >= 20.7 - 1e-9 and r.north0_m - r.shape[0] * 1.5 <= -10.3 + 1e-9
+
+
+def test_pyramid_levels_equal_chained_halving():
+    """A level made in one pass from level 0 equals two exact halvings (INTER_AREA), and a
+    reduced pixel is valid only when all the pixels it covers are."""
+    import cv2
+
+    from testbench.navigation.ismn.area import pyramid
+
+    rng = np.random.default_rng(5)
+    img = rng.integers(0, 255, (203, 317), dtype=np.uint8)
+    valid = np.ones(img.shape, bool)
+    valid[10, 20] = False
+    pyr = pyramid(img, valid, 2)
+    g1 = cv2.resize(img[:202, :316], None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
+    g2 = cv2.resize(g1[:100, :158], None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
+    assert len(pyr) == 3 and pyr[2][0].shape == g2.shape
+    assert np.abs(pyr[2][0].astype(int) - g2).max() <= 1
+    v2 = pyr[2][1]
+    assert not v2[10 // 4, 20 // 4] and v2.sum() == v2.size - 1
