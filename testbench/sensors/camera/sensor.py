@@ -60,7 +60,9 @@ class CameraFrame:
     t_s; camera_name; image (H, W, 3) uint8 RGB of the whole frame, or None when only regions
     were rendered; regions: the rendered parts (RenderedFrame, each with its roi and the truth of
     the vehicles it shows); vehicles: truth annotations (full-frame pixels) of the other vehicles;
-    offmap_fraction: share of the rendered pixels that look at ground off the map (no-data).
+    offmap_fraction: share of the rendered pixels that look at ground off the map (no-data);
+    camera, mount: the camera model (K, distortion) and mounting (R_bc camera->body, lever arm)
+    that rendered the frame, so that navigation can use K and R_bc.
     """
 
     t_s: float
@@ -69,6 +71,8 @@ class CameraFrame:
     regions: tuple[RenderedFrame, ...]
     vehicles: tuple[VehicleTruth, ...]
     offmap_fraction: float
+    camera: PinholeCamera | None = None
+    mount: CameraMount | None = None
 
 
 class CameraParams(ParamsModel):
@@ -187,7 +191,8 @@ class CameraSensor(Sensor):
         if offmap > 0.5 and not self._warned_offmap:
             log.warning("camera %s at t=%.1f s: %.0f %% of the view is off the map (no-data)", self.name, truth.t_s, 100 * offmap)
             self._warned_offmap = True
-        return CameraFrame(truth.t_s, self.name, None if whole is None else whole.image, tuple(parts), truths, offmap)
+        return CameraFrame(truth.t_s, self.name, None if whole is None else whole.image, tuple(parts), truths, offmap,
+                           self.camera, self.mount)
 
     def _annotations_only(self, truth: TruthState, world: Any, centre: np.ndarray, R_nc: np.ndarray, requests) -> CameraFrame:
         """A frame without pixels: zero-stride black images of the requested regions, with the
@@ -208,7 +213,8 @@ class CameraSensor(Sensor):
             flags = np.broadcast_to(np.zeros((1, 1), bool), (h, w))
             parts.append(RenderedFrame(img, flags, flags, 0.0, truths, None if full else box))
         whole = next((p for p in parts if p.roi is None), None)
-        return CameraFrame(truth.t_s, self.name, None if whole is None else whole.image, tuple(parts), truths, 0.0)
+        return CameraFrame(truth.t_s, self.name, None if whole is None else whole.image, tuple(parts), truths, 0.0,
+                           self.camera, self.mount)
 
     def _footprint(self, centre: np.ndarray, R_nc: np.ndarray, world: Any):
         """NE bounds of the ground the frame can see and the window's ground sample (m/px),

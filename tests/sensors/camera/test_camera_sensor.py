@@ -85,3 +85,10 @@ def test_region_requests():
     assert frame.image is None and len(frame.regions) == 1
     assert frame.regions[0].roi == (10, 20, 42, 52) and frame.regions[0].image.shape == (32, 32, 3)
     assert _sensor().measure(make_truth(0.0), TinyWorld(requests=[]), np.random.default_rng(0)) is None
+
+
+def test_frame_carries_camera_model_and_mount():
+    cam = _sensor()
+    frame = cam.measure(make_truth(0.0), TinyWorld(), np.random.default_rng(0))
+    assert frame.camera == cam.camera
+    assert np.allclose(frame.mount.R_bc, cam.mount.R_bc)
