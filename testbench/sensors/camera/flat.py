@@ -85,12 +85,12 @@ def tile_levels(view: PlaneView, width: int, height: int, max_level: int, lod_bi
     # Corners beyond the far plane: evaluate the scale where the tile meets the far line.
     w_lim = max(view.w_far, 1e-7 * max(abs(wc[2]), 1e-12)) * (1.0 + 1e-6)
     g2 = wc[0] ** 2 + wc[1] ** 2
-    if g2 > 0:
-        shift = np.where(W < w_lim, (w_lim - W) / g2, 0.0)
-        Us, Vs = U + shift * wc[0], V + shift * wc[1]
-    else:
-        Us, Vs = U, V
-    with np.errstate(all="ignore"):
+    with np.errstate(all="ignore"):  # camera at/below the plane: w_lim = inf, all tiles sky
+        if g2 > 0:
+            shift = np.where(W < w_lim, (w_lim - W) / g2, 0.0)
+            Us, Vs = U + shift * wc[0], V + shift * wc[1]
+        else:
+            Us, Vs = U, V
         s = map_scale(view.H_map, Us, Vs)
         lod = np.log2(np.maximum(s, 1e-12)) + lod_bias
     lod = np.where(np.isfinite(lod), lod, max_level)
