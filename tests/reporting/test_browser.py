@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 import pytest
 
-from test_report import decoded_images, n_colors
+from report_helpers import decoded_images, n_colors
 
 pytestmark = pytest.mark.browser
 

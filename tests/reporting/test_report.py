@@ -1,26 +1,13 @@
 import argparse
-import base64
 import re
 
-import cv2
 import numpy as np
 import pytest
+from report_helpers import decoded_images, n_colors
 
 from testbench.core.errors import InputError
 from testbench.reporting import build_report, write_html_report, write_pdf_report
 from testbench.scoring.synthetic import make_synthetic_run
-
-DATA_PNG = re.compile(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"')
-
-
-def n_colors(img: np.ndarray) -> int:
-    """Number of distinct RGB colours of a (h, w, 3) uint8 image."""
-    packed = img.reshape(-1, 3).astype(np.int32) @ np.array([1 << 16, 1 << 8, 1], np.int32)
-    return int(np.unique(packed).size)
-
-
-def decoded_images(html: str) -> list[np.ndarray]:
-    return [cv2.imdecode(np.frombuffer(base64.b64decode(b), np.uint8), cv2.IMREAD_COLOR) for b in DATA_PNG.findall(html)]
 
 
 def test_html_is_self_contained_and_ordered(html_report):

@@ -2,7 +2,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from conftest import record_of, straight_telemetry
+from scoring_helpers import record_of, straight_telemetry
 from testbench.scoring import score_record
 from testbench.scoring.metrics_control import compute_control, cross_track_m
 from testbench.scoring.metrics_nav import compute_nav, position_nees

@@ -5,7 +5,7 @@ import types
 import numpy as np
 import pytest
 
-from conftest import record_of, straight_telemetry
+from scoring_helpers import record_of, straight_telemetry
 from testbench.core.errors import InputError
 from testbench.scoring import load_run, register_metric, score_record, score_run, unregister_metric
 from testbench.scoring.synthetic import write_record

@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from conftest import record_of, straight_telemetry
+from scoring_helpers import record_of, straight_telemetry
 from testbench.core.errors import InputError
 from testbench.scoring import check_thresholds, score_record, write_metrics_json
 
