@@ -60,3 +60,16 @@ def test_tum_lines_are_valid(run_dir):
     assert np.all(np.diff(rows[:, 0]) > 0)
     assert rows[0, 0] >= 2.0  # NaN rows skipped
     assert np.allclose(np.linalg.norm(rows[:, 4:8], axis=1), 1.0)
+
+
+def test_evo_on_the_recorders_own_tum_writer(run_dir, tmp_path):
+    """The engine's recorder writes the TUM files of real runs: evo must agree with them too."""
+    recorder = pytest.importorskip("testbench.sim.recorder")
+    import pyarrow as pa
+
+    tel = load_run(run_dir).telemetry
+    tel = tel[tel["vehicle_id"] == "uav0"]
+    recorder.write_tum_files(pa.Table.from_pandas(tel, preserve_index=False), tmp_path / "traj")
+    rmse = _evo_rmse(tmp_path / "traj" / "uav0_truth.tum", tmp_path / "traj" / "uav0_nav.tum", tmp_path / "r.zip")
+    ours = score_record(load_run(run_dir), metrics=[]).flatten()["vehicles.uav0.nav.position_error_m.rms"]
+    assert rmse == pytest.approx(ours, rel=0.01)
