@@ -77,9 +77,10 @@ class Orthorectifier:
                 maps = cv2.initUndistortRectifyMap(K_s, np.asarray(cam.dist, float), None, K_s, (w, h), cv2.CV_16SC2)
                 self._undistort_cache[(w, h)] = maps
             small = cv2.remap(small, maps[0], maps[1], cv2.INTER_LINEAR, borderValue=0)
-        if small is grey:
-            small = grey.copy()
-        np.maximum(small, 1, out=small)
+        if small is grey or small is frame:
+            small = cv2.max(small, 1)  # a new array: the caller's frame is left as it was
+        else:
+            np.maximum(small, 1, out=small)
         return small, K_s
 
     def rectify(
