@@ -201,10 +201,11 @@ def make_sample(rng: np.random.Generator, s: DataSettings, range_m: tuple[float,
         if -p[2] > 3.0:
             vehicles.append(random_vehicle(rng, "v1", p, s))
     # far_m is a camera depth: at the ROI corners of a 120 deg lens the range is ~2.2x the depth,
-    # so 500 m keeps every drawn ground point inside the 3 km world (observer within 300 m of
-    # its centre) and the rest becomes haze/sky instead of black no-data.
+    # so this keeps every drawn ground point inside the world (observer within 300 m of its
+    # centre; 500 m for the 3 km world) and the rest becomes haze/sky instead of black no-data.
+    far_m = max(100.0, (500.0 * s.world_size_km - 300.0) / 2.4)
     opts = RenderOptions(
-        far_m=500.0, gain=float(rng.uniform(0.6, 1.4)), noise_std=float(rng.uniform(0.0, s.noise_std_max)),
+        far_m=far_m, gain=float(rng.uniform(0.6, 1.4)), noise_std=float(rng.uniform(0.0, s.noise_std_max)),
         haze_visibility_m=float(rng.uniform(2000.0, 40000.0)),
         motion_blur_px=tuple(float(x) for x in (rng.normal(0, 0.6, 2) if rng.random() < 0.3 else (0.0, 0.0))),
         sky_zenith_rgb=tuple(int(x) for x in np.clip(np.array([78, 128, 196]) + rng.normal(0, 15, 3), 0, 255)),
