@@ -112,8 +112,15 @@ def relnav_figure(record: RunRecord) -> FigureItem | None:
         rms.append(float(np.sqrt(np.nanmean(err[sel] ** 2))))
         if i < MAX_PAIR_LINES:
             ax.plot(t[sel], err[sel], lw=0.8, label=f"{a} → {b}")
+    # One misattributed peer can be hundreds of metres off while the rest are decimetres:
+    # a log scale keeps both readable.
+    finite = err[np.isfinite(err) & (err > 0)]
+    wide = finite.size > 0 and np.max(finite) > 30.0 * max(np.median(finite), 1e-6)
+    if wide:
+        ax.set_yscale("log")
+        axb.set_xscale("log")
     ax.set_xlabel("time (s)")
-    ax.set_ylabel("relative position error (m)")
+    ax.set_ylabel("relative position error (m)" + (" (log)" if wide else ""))
     ax.grid(True, alpha=0.3)
     title = "" if len(pairs) <= MAX_PAIR_LINES else f" (first {MAX_PAIR_LINES} of {len(pairs)} pairs)"
     ax.legend(fontsize=6, ncol=2, title=title or None, title_fontsize=7)
