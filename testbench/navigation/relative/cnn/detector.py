@@ -54,7 +54,7 @@ class CnnDetector(Detector):
 
     class Params(ParamsModel):
         weights: str | None = None
-        score_min: float = pydantic.Field(0.35, gt=0.0, lt=1.0)
+        score_min: float = pydantic.Field(0.55, gt=0.0, lt=1.0)
         nms_iou: float = pydantic.Field(0.4, gt=0.0, le=1.0)
         nms_centre_px: float = pydantic.Field(4.0, ge=0.0)
         tile_px: int = pydantic.Field(544, ge=64)

@@ -123,12 +123,14 @@ def decode(out: torch.Tensor, score_min: float, max_det: int = 50) -> list[np.nd
     return res
 
 
-def nms(boxes: np.ndarray, scores: np.ndarray, iou_max: float = 0.4, centre_px: float = 3.0) -> np.ndarray:
+def nms(boxes: np.ndarray, scores: np.ndarray, iou_max: float = 0.4, centre_px: float = 3.0,
+        centre_frac: float = 0.5) -> np.ndarray:
     """Greedy non-maximum suppression.
 
     boxes (n, 4) (u0, v0, u1, v1), scores (n,). A box is suppressed by a better-scoring kept box
-    when their IoU > iou_max OR their centres lie within centre_px (IoU alone is meaningless
-    for 2-px boxes). Returns the kept indices, best first.
+    when their IoU > iou_max OR their centres lie within max(centre_px, centre_frac * the kept
+    box's larger side) (IoU alone is meaningless for 2-px boxes, and a badly sized box on a
+    large wing would escape it). Returns the kept indices, best first.
     """
     boxes = np.asarray(boxes, float).reshape(-1, 4)
     order = np.argsort(-np.asarray(scores, float), kind="stable")
@@ -144,7 +146,8 @@ def nms(boxes: np.ndarray, scores: np.ndarray, iou_max: float = 0.4, centre_px: 
         inter = iw * ih
         union = area[i] + area[rest] - inter
         iou = np.where(union > 0, inter / np.where(union > 0, union, 1.0), 0.0)
-        near = np.hypot(cu[rest] - cu[i], cv[rest] - cv[i]) <= centre_px
+        reach = max(centre_px, centre_frac * max(boxes[i, 2] - boxes[i, 0], boxes[i, 3] - boxes[i, 1]))
+        near = np.hypot(cu[rest] - cu[i], cv[rest] - cv[i]) <= reach
         order = rest[(iou <= iou_max) & ~near]
     return np.array(keep, int)
 

@@ -107,7 +107,7 @@ def train(seed: int, out_path, minutes: float | None = None, settings: TrainSett
             loss.backward()
             opt.step()
             sched.step()
-            losses.append(float(loss))
+            losses.append(loss.item())
             step += 1
             if progress is not None and step % 50 == 0:
                 progress(step, float(np.mean(losses[-50:])))

@@ -53,7 +53,10 @@ def test_nms():
     keep = nms(boxes, scores, iou_max=0.4, centre_px=3.0)
     # 1 overlaps 0 (IoU 0.68); 3 is 1 px from the better 4 (tiny boxes: centre rule).
     assert keep.tolist() == [4, 0, 2]
-    assert nms(boxes, scores, iou_max=1.0, centre_px=0.0).tolist() == [4, 0, 1, 2, 3]
+    assert nms(boxes, scores, iou_max=1.0, centre_px=0.0, centre_frac=0.0).tolist() == [4, 0, 1, 2, 3]
+    # A poorly sized duplicate on a large target: centre within half the kept box's side.
+    big = np.array([[0, 0, 40, 10], [12, 2, 16, 6]], float)
+    assert nms(big, np.array([0.9, 0.6])).tolist() == [0]
     assert nms(np.zeros((0, 4)), np.zeros(0)).size == 0
 
 
