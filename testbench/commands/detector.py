@@ -17,7 +17,7 @@ def register(subparsers) -> None:
     t.add_argument("--out", required=True, help="weights file to write (.pt); the card goes to the same name .json")
     t.add_argument("--minutes", type=float, default=None,
                    help="wall-clock cap (stops early: a capped run is no longer reproducible)")
-    t.add_argument("--steps", type=int, default=None, help="optimisation steps (default: the card's 2400)")
+    t.add_argument("--steps", type=int, default=None, help="optimisation steps (default 4000, as the packaged weights)")
     t.add_argument("--samples", type=int, default=None, help="rendered training crops (default 16000)")
     t.set_defaults(handler=_train)
     e = sub.add_parser("eval", help="precision/recall by range bin on fresh held-out renders")

@@ -31,7 +31,7 @@ class TrainSettings:
     range bin; data: the DataSettings of the training crops."""
 
     n_train: int = 16000
-    steps: int = 2400
+    steps: int = 4000
     batch: int = 32
     lr: float = 3e-3
     weight_decay: float = 1e-4
