@@ -88,6 +88,8 @@ _READ = (
 )
 
 _MAX_SPEED_MPS = 250.0
+# JSBSim's flat ground when the adapter owns terrain contact: below the Dead Sea shore (-430 m).
+_JSBSIM_GROUND_BELOW_ALL_M = -1000.0
 _MAX_RATE_RPS = 30.0
 
 
@@ -147,7 +149,13 @@ class JSBSimDynamics(Dynamics):
         lat, lon, alt = ned_to_geodetic(np.asarray(initial.pos_ned_m, float), o.lat_rad, o.lon_rad, o.alt_m)
         fdm = self.fdm
         ground_m = o.alt_m + self._terrain_at(initial.pos_ned_m[0], initial.pos_ned_m[1])
-        fdm["ic/terrain-elevation-ft"] = o.alt_m * M_TO_FT  # JSBSim's own (flat) ground
+        # JSBSim has its own flat ground, used only by its gear contact model. The adapter owns
+        # terrain contact (against the elevation model), so by default JSBSim's ground goes
+        # below the lowest land on Earth where it can never act (a canyon floor below the origin
+        # would otherwise be "underground" for JSBSim). Take-off studies keep it at the terrain
+        # under the start point so that the gear meets the ground there.
+        jsbsim_ground_m = ground_m if self._allow_ground else _JSBSIM_GROUND_BELOW_ALL_M
+        fdm["ic/terrain-elevation-ft"] = jsbsim_ground_m * M_TO_FT
         fdm["ic/lat-geod-rad"] = float(lat)
         fdm["ic/long-gc-rad"] = float(lon)
         fdm["ic/h-sl-ft"] = float(alt) * M_TO_FT

@@ -83,3 +83,25 @@ def test_quad_motor_lag_time_constant():
         fdm.run()
     frac = (fdm["fcs/motor0-thrust-norm"] - u0) / 0.1
     assert frac == pytest.approx(1.0 - np.exp(-1.0), abs=0.03)
+
+
+def test_flight_below_the_origin_over_low_terrain():
+    """A canyon floor 300 m below the origin: JSBSim's own ground must not sit at the origin
+    altitude (the vehicle would start 'underground' and blow up), and the adapter's own
+    terrain check must still end the run when the vehicle meets the real terrain."""
+    from testbench.core.errors import SimulationAborted
+    from testbench.core.interfaces import GeodeticOrigin
+    from testbench.core.messages import RotorCommand
+    from testbench.dynamics.jsbsim_adapter import InitialCondition, JSBSimDynamics
+
+    origin = GeodeticOrigin(lat_rad=np.radians(36.1), lon_rad=np.radians(-112.1), alt_m=1500.0)
+    dyn = JSBSimDynamics("tb_quad", origin, 200.0, terrain_height_fn=lambda n, e: -300.0, vehicle_id="q")
+    truth = dyn.reset(InitialCondition(pos_ned_m=(0.0, 0.0, 220.0)))  # 220 m below the origin
+    assert truth.height_agl_m == pytest.approx(80.0, abs=0.5)
+    dyn.advance(None, 200)  # 1 s of hover: no runaway
+    t = dyn.truth()
+    assert np.linalg.norm(t.vel_ned_mps) < 5.0 and t.height_agl_m > 70.0
+
+    with pytest.raises(SimulationAborted, match="ground contact"):
+        for _ in range(40):  # motors off: falls 80 m onto the canyon floor within ~5 s
+            dyn.step(RotorCommand(motors=(0.0,) * 4), 0.25)

@@ -142,3 +142,18 @@ def test_streamed_files_match_make_world(tmp_path, origin):
     assert prev.shape == (100, 100, 3) and abs(zr[0] - float(z.min())) < 1e-4
     c_img, _, _, _ = write_world_streamed(tmp_path / "c", "farmland", 1.2, 2.0, 3, "autumn", origin)
     assert hashlib.sha256(open(b_img, "rb").read()).digest() == hashlib.sha256(open(c_img, "rb").read()).digest()
+
+
+def test_elevation_window_is_clipped_to_the_dem(tmp_path, origin):
+    """A horizontal camera asks for terrain out to its far clip (tens of km); the run's world
+    reads only what the DEM covers, once, and serves later requests from that window."""
+    from testbench.config.schema import Origin, World
+    from testbench.sim.world_runtime import RunWorld
+
+    spec = "procedural:canyon?seed=2&size_km=0.5&gsd_m=4"
+    world = World(origin=Origin(lat_deg=float(np.degrees(origin.lat_rad)), lon_deg=float(np.degrees(origin.lon_rad)),
+                                alt_m=origin.alt_m), imagery=spec, elevation=spec)
+    run_world = RunWorld(world, origin, cache_dir=tmp_path)
+    first = run_world.elevation_for((-20_000.0, 20_000.0, -20_000.0, 20_000.0))
+    assert first.shape[0] <= 500 / 4 + 4 and first.shape[1] <= 500 / 4 + 4
+    assert run_world.elevation_for((-15_000.0, 30_000.0, -1_000.0, 1_000.0)) is first

@@ -137,3 +137,19 @@ def test_horizon_row_for_pitch(pitch_deg):
         assert first_ground - 1 < expected + 0.02 and first_ground > expected - 0.02
     # The sky is drawn with the sky colours, not the map.
     assert (f.image[f.sky][:, 2] > f.image[f.sky][:, 0]).all()
+
+
+def test_dem_max_maps_bound_the_terrain_exactly():
+    """The ray caster's empty-space maps (built level by level from shifted maxima) equal a
+    direct square dilation of radius 2^j + 1, edges replicated."""
+    from testbench.sensors.camera.pyramid import DemSampler
+    from testbench.world.raster import LocalRaster
+
+    rng = np.random.default_rng(3)
+    h = (rng.random((150, 230)) * 100.0).astype(np.float32)
+    sampler = DemSampler(LocalRaster(h, np.ones_like(h, bool), 0.0, 0.0, 4.0))
+    assert len(sampler.max_maps) == 8  # radii 2 ... 129 while 2^j <= 230
+    for j, got in enumerate(sampler.max_maps):
+        r = (1 << j) + 1
+        want = cv2.dilate(h, np.ones((2 * r + 1, 2 * r + 1), np.uint8), borderType=cv2.BORDER_REPLICATE)
+        np.testing.assert_array_equal(got, want, err_msg=f"level {j}")
