@@ -82,12 +82,32 @@ def run_batch(
         ordered = [rows[i] for i in sorted(rows)]
         write_runs_parquet(out / "runs.parquet", rows)
         summary = summarize(ordered, plan.runs)
+        summary["nees_position"] = _nees_summary(runs_dir, ordered)
         (out / "summary.json").write_text(json.dumps(_json_safe(summary), indent=2, sort_keys=True) + "\n", encoding="utf-8")
     if report:
         from testbench.batch.report import write_batch_report
 
         write_batch_report(out, ordered, summary, out / "report.html")
     return BatchResult(out, ordered, summary, skipped)
+
+
+def _nees_summary(runs_dir: Path, rows: list[dict[str, Any]]) -> dict[str, float] | None:
+    """Average position NEES over the finished runs (batch.consistency), or None when fewer
+    than two finished runs have a covariance. Never fails the batch: a run folder that cannot
+    be read is left out with a warning."""
+    from testbench.batch.consistency import nees_consistency
+
+    dirs = []
+    for r in rows:
+        d = runs_dir / f"run_{int(r['run']):05d}"
+        if r.get("status") in ("passed", "threshold_failed") and (d / "telemetry.parquet").is_file():
+            dirs.append(d)
+    try:
+        res = nees_consistency(dirs)
+    except Exception as exc:  # noqa: BLE001 -- a statistic must not lose the batch
+        log.warning("NEES consistency not computed: %s", exc)
+        return None
+    return None if res is None else res.as_dict()
 
 
 def _check_identity(path: Path, plan: BatchPlan) -> None:

@@ -81,6 +81,7 @@ def write_batch_report(out_dir: Path, rows: list[dict[str, Any]], summary: dict[
 <h1>Monte Carlo batch {html.escape(out_dir.name)}</h1>
 <p>{summary['runs_done']} of {summary['runs_planned']} runs done; status: {html.escape(str(summary['status_counts']))}.
 Threshold pass rate {_fmt(pr['value'])} (95 % CI {_fmt(pr['ci95_low'])} to {_fmt(pr['ci95_high'])}, n = {pr['n']}).</p>
+{_nees_html(summary.get("nees_position"))}
 <h2>Runs that did not pass</h2><table><tr><th>run</th><th>status</th><th>error</th></tr>{run_rows or '<tr><td colspan=3>none</td></tr>'}</table>
 <h2>Figures</h2>{''.join(f'<figure><img alt="{html.escape(t)}" src="data:image/png;base64,{b}"><figcaption>{html.escape(t)}</figcaption></figure>' for t, b in figures)}
 <h2>Statistics</h2><table><tr><th>metric</th><th>n</th><th>mean</th><th>CI95 low</th><th>CI95 high</th><th>std</th><th>median</th><th>p95</th><th>max</th></tr>{stat_rows}</table>
@@ -88,6 +89,18 @@ Threshold pass rate {_fmt(pr['value'])} (95 % CI {_fmt(pr['ci95_low'])} to {_fmt
     tmp = path.with_suffix(".html.part")
     tmp.write_text(body, encoding="utf-8")
     tmp.replace(path)
+
+
+def _nees_html(nees: dict[str, Any] | None) -> str:
+    """Paragraph on filter consistency (average position NEES over runs), empty without it."""
+    if not nees:
+        return ""
+    return (
+        f"<h2>Filter consistency</h2><p>Average position NEES over {nees['runs']} runs (3 dof): inside its 95 % "
+        f"bounds [{_fmt(nees['bound_low'])}, {_fmt(nees['bound_high'])}] at {100 * nees['fraction_within']:.1f} % "
+        f"of {nees['samples']} record times, above at {100 * nees['fraction_above']:.1f} %; time mean "
+        f"{_fmt(nees['mean_of_average'])} (3 for a consistent filter).</p>"
+    )
 
 
 def _fmt(v: Any) -> str:

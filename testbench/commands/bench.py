@@ -24,6 +24,7 @@ SUITES = (
     ("nav", "testbench.navigation.ins.bench"),
     ("ismn", "testbench.navigation.ismn.bench"),
     ("relnav", "testbench.navigation.relative.bench"),
+    ("cnn", "testbench.navigation.relative.cnn.bench"),
     ("scenarios", "testbench.batch.bench"),
 )
 

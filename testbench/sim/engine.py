@@ -29,6 +29,9 @@ from testbench.sim.world_runtime import RunWorld, TickWorldView, _LazyTruths
 
 log = logging.getLogger(__name__)
 
+# Below this leader ground speed the formation-scoring course is held (see _record_formation).
+_FORMATION_COURSE_MIN_SPEED_MPS = 1.0
+
 
 @dataclass
 class EngineResult:
@@ -66,6 +69,7 @@ class Engine:
         self.vehicles = vehicles
         self.by_id = {v.id: v for v in vehicles}
         self.formation = formation
+        self._formation_course_rad: float | None = None  # scoring's leader course (held at low speed)
         self.world = world
         self.dt_s = 1.0 / physics_rate_hz
         self.n_ticks = int(round(duration_s * physics_rate_hz))
@@ -142,7 +146,7 @@ class Engine:
                 continue
             truth = v.dynamics.truth()
             if view is None:
-                view = TickWorldView(self.world, t_s, v.id, truths, self._render_requests(v, t_s))
+                view = TickWorldView(self.world, t_s, v.id, truths, lambda v=v, t_s=t_s: self._render_requests(v, t_s))
             m = slot.sensor.measure(truth, view, slot.rng)
             if m is None:
                 continue
@@ -223,12 +227,21 @@ class Engine:
         return ref
 
     def _record_formation(self, t_s: float) -> None:
-        """Slot errors from TRUTH: each vehicle minus (leader + R(leader course) (slot - slot_leader))."""
+        """Slot errors from TRUTH: each vehicle minus (leader + R(leader course) (slot - slot_leader)).
+
+        The leader's course is its ground-track direction; below 1 m/s ground speed (hover,
+        start-up) the track direction is noise, so the last course is held, starting from the
+        leader's heading (the followers' controller does the same with its estimates).
+        """
         from testbench.control.formation import formation_errors
 
         f = self.formation
         leader = self.by_id[f.leader].dynamics.truth()
-        course = math.atan2(leader.vel_ned_mps[1], leader.vel_ned_mps[0])
+        if math.hypot(leader.vel_ned_mps[0], leader.vel_ned_mps[1]) >= _FORMATION_COURSE_MIN_SPEED_MPS:
+            self._formation_course_rad = math.atan2(leader.vel_ned_mps[1], leader.vel_ned_mps[0])
+        elif self._formation_course_rad is None:
+            self._formation_course_rad = float(leader.rpy_rad[2])
+        course = self._formation_course_rad
         pos = {vid: self.by_id[vid].dynamics.truth().pos_ned_m for vid in f.slots}
         for vid, err in formation_errors(pos, course, {k: tuple(s) for k, s in f.slots.items()}, f.leader).items():
             self.recorder.event(

@@ -165,19 +165,22 @@ def _write_parquet(table: pa.Table, path: Path) -> None:
 
 
 def write_tum_files(tel: pa.Table, folder: Path) -> None:
-    """<id>_truth.tum and <id>_nav.tum per vehicle: `t x y z qx qy qz qw` in local NED metres."""
+    """<id>_truth.tum and <id>_nav.tum per vehicle: `t x y z qx qy qz qw` in local NED metres.
+
+    Both files keep only the rows where truth and estimate are finite (e.g. not before the
+    navigator started), with unit quaternions (scoring.write_tum), so that `evo_ape` associates
+    exactly the rows that scoring uses.
+    """
+    from testbench.scoring.tum import write_tum
+
     folder.mkdir(parents=True, exist_ok=True)
-    vids = tel.column("vehicle_id").to_pylist()
-    cols = {name: np.asarray(tel.column(name).to_numpy()) for name in tel.column_names if name != "vehicle_id" and tel.schema.field(name).type == pa.float64()}
-    ids = list(dict.fromkeys(vids))
-    v = np.asarray(vids)
-    for vid in ids:
+    v = np.asarray(tel.column("vehicle_id").to_pylist())
+    col = {name: np.asarray(tel.column(name).to_numpy(zero_copy_only=False), float)
+           for name in tel.column_names if tel.schema.field(name).type == pa.float64()}
+    for vid in dict.fromkeys(v.tolist()):
         m = v == vid
-        for prefix, tag in (("truth", "truth"), ("nav", "nav")):
-            data = np.column_stack([
-                cols["t_s"][m],
-                cols[f"{prefix}_north_m"][m], cols[f"{prefix}_east_m"][m], cols[f"{prefix}_down_m"][m],
-                cols[f"{prefix}_qx"][m], cols[f"{prefix}_qy"][m], cols[f"{prefix}_qz"][m], cols[f"{prefix}_qw"][m],
-            ])
-            lines = "\n".join(" ".join(f"{x:.9f}" for x in row) for row in data)
-            (folder / f"{vid}_{tag}.tum").write_text(lines + "\n", encoding="utf-8")
+        pos = {k: np.column_stack([col[f"{k}_{a}_m"][m] for a in ("north", "east", "down")]) for k in ("truth", "nav")}
+        both = np.all(np.isfinite(pos["truth"]), axis=1) & np.all(np.isfinite(pos["nav"]), axis=1)
+        for k in ("truth", "nav"):
+            q = np.column_stack([col[f"{k}_q{c}"][m] for c in "wxyz"])
+            write_tum(folder / f"{vid}_{k}.tum", col["t_s"][m][both], pos[k][both], q[both])

@@ -185,4 +185,22 @@ def _run_info(loaded: LoadedScenario, engine: Engine, world: RunWorld, result: E
         "same_raster": world.same_raster,
         "world": scn.world.model_dump(exclude={"origin"}),
         "thresholds": {k: v.model_dump(exclude_none=True) for k, v in scn.thresholds.items()},
+        "gnss_denied_windows": {v.id: _gnss_denied_windows(v.spec, result.sim_time_s) for v in engine.vehicles},
     }
+
+
+def _gnss_denied_windows(vehicle_spec, sim_time_s: float) -> list[list[float]]:
+    """[[start_s, end_s], ...] when the vehicle had no GNSS fix by configuration: its receivers'
+    jamming windows (clipped to the run), or the whole run without a GNSS receiver. Degraded
+    and spoofed windows still deliver fixes and are not listed."""
+    from testbench.sensors.gnss import GnssParams
+
+    receivers = [s for s in vehicle_spec.sensors if s.type == "gnss"]
+    if not receivers:
+        return [[0.0, float(sim_time_s)]]
+    windows = []
+    for spec in receivers:
+        for w in GnssParams.model_validate(spec.params).denial:
+            if w.type == "jamming" and w.start_s < sim_time_s:
+                windows.append([float(w.start_s), float(min(w.end_s, sim_time_s))])
+    return sorted(windows)

@@ -188,7 +188,10 @@ class _LazyTruths(Mapping):
 class TickWorldView:
     """What one vehicle's sensors may see at one tick (satisfies core.interfaces.WorldView)."""
 
-    def __init__(self, world: RunWorld, t_s: float, self_id: str, truths: Mapping[str, TruthState], requests: dict[str, list] | None = None):
+    def __init__(self, world: RunWorld, t_s: float, self_id: str, truths: Mapping[str, TruthState],
+                 requests: Callable[[], dict[str, list] | None] | dict[str, list] | None = None):
+        """requests: the aids' render wishes per camera name, or a callable giving them, asked
+        only when a camera renders (most ticks sample only the IMU)."""
         self.world = world
         self.t_s = t_s
         self.origin = world.origin
@@ -220,6 +223,8 @@ class TickWorldView:
 
     def render_requests(self, camera_name: str):
         """Regions an aid asked this camera to render (None: the whole frame)."""
+        if callable(self._requests):
+            self._requests = self._requests()
         if self._requests is None:
             return None
         return self._requests.get(camera_name)

@@ -1,4 +1,4 @@
-"""Latency benchmarks of the CNN detector (wired into `testbench bench` by the lead)."""
+"""Latency benchmarks of the CNN detector (`testbench bench --only cnn`)."""
 
 from __future__ import annotations
 
@@ -30,7 +30,7 @@ def run_benchmarks() -> dict[str, float]:
     frame = np.tile(roi_img, (5, 8, 1))[:1080, :1920]
     rois = [(0, 0, 256, 256), (600, 300, 856, 556), (1200, 500, 1456, 756), (1600, 800, 1856, 1056)]
     return {
-        "cnn_detect_roi256_ms": _median_ms(lambda: det.detect(roi_img), 10),
-        "cnn_detect_4rois_in_frame_ms": _median_ms(lambda: det.detect(frame, rois=rois), 5),
-        "cnn_detect_full_frame_ms": _median_ms(lambda: det.detect(frame), 2),
+        "cnn.detect_roi256_ms": _median_ms(lambda: det.detect(roi_img), 10),
+        "cnn.detect_4rois_in_frame_ms": _median_ms(lambda: det.detect(frame, rois=rois), 5),
+        "cnn.detect_full_frame_ms": _median_ms(lambda: det.detect(frame), 2),
     }
