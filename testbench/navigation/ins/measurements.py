@@ -1,5 +1,5 @@
 """Measurement models of the error-state EKF: residual y = z - h(nominal), Jacobian
-H = d h(nominal (+) error) / d error at zero error (16 columns, error_model layout), noise R.
+H = d h(nominal (+) error) / d error at zero error (19 columns, error_model layout), noise R.
 
 Each function takes the filter (`ErrorStateEKF`) for its nominal state and returns (y, H, R).
 """
@@ -14,20 +14,24 @@ import numpy as np
 from testbench.core import geodesy
 from testbench.core.interfaces import GeodeticOrigin
 from testbench.core.rotations import dcm_to_euler, skew, wrap_pi
-from testbench.navigation.ins.error_model import IA, IBB, IP, IV, N_STATES
+from testbench.navigation.ins.error_model import IA, IBB, IGN, IP, IV, N_STATES
 
 
 def gnss_position(ekf, lat_rad: float, lon_rad: float, alt_m: float, sigma_ned_m):
-    """GNSS position (geodetic) -> residual in NED metres at the vehicle; H = [I 0 ...]."""
+    """GNSS position (geodetic) -> residual in NED metres at the vehicle.
+
+    The fix is the true position plus the receiver's correlated error (the b_gnss state) plus
+    white noise of sigma_ned_m: H = [I 0 ... 0 I] (position and GNSS-error columns)."""
     ins = ekf.ins
     r_m, r_n = geodesy.radii_of_curvature(ins.lat_rad)
     y = np.array([
         (r_m + ins.h_m) * (lat_rad - ins.lat_rad),
         (r_n + ins.h_m) * math.cos(ins.lat_rad) * math.remainder(lon_rad - ins.lon_rad, 2 * math.pi),
         -(alt_m - ins.h_m),
-    ])
+    ]) - ekf.b_gnss
     H = np.zeros((3, N_STATES))
     H[:, IP] = np.eye(3)
+    H[:, IGN] = np.eye(3)
     return y, H, np.diag(np.square(sigma_ned_m))
 
 

@@ -29,7 +29,7 @@ from testbench.core.units import DEG_TO_RAD, STANDARD_GRAVITY_MPS2
 from testbench.navigation.ins import measurements as meas
 from testbench.navigation.ins.consistency import error_state
 from testbench.navigation.ins.ekf import ErrorStateEKF
-from testbench.navigation.ins.error_model import IA, IBA, IBB, IBG, IP, IV, N_STATES
+from testbench.navigation.ins.error_model import IA, IBA, IBB, IBG, IGN, IP, IV, N_STATES
 from testbench.navigation.ins.imu_noise import imu_noise_from_datasheet, preset_datasheet, preset_names
 from testbench.navigation.ins.magnetic import OnboardMagneticModel
 
@@ -91,9 +91,16 @@ class InsEkfNavigator(Navigator):
         use_gnss: bool = True
         use_gnss_velocity: bool = True
         gnss_min_interval_s: float = pydantic.Field(1.0, ge=0.0)
-        """GNSS fixes closer than this to the last one used are skipped: receiver position
-        errors are correlated over tens of seconds, and fusing every 5-10 Hz fix as if it
-        were independent makes the covariance overconfident."""
+        """GNSS fixes closer than this to the last one used are skipped (cost: the receiver's
+        correlated error is modelled, so the skipped fixes carry little information)."""
+        gnss_error_sigma_m: float = pydantic.Field(1.0, ge=0.0)
+        gnss_error_tau_s: float = pydantic.Field(60.0, gt=0.0)
+        """The receiver's position error that is correlated over tens of seconds (ionosphere,
+        orbit/clock, multipath): steady-state sigma per axis and correlation time of the three
+        Gauss-Markov EKF states that carry it. The defaults are the gnss sensor's defaults
+        (pos_corr_sigma_m, pos_corr_s). A fix's claimed sigma is split into this part and a
+        white remainder; without these states, fusing fix after fix would average the
+        correlated error away and leave the covariance several times too small."""
         use_baro: bool = True
         use_mag: bool = True
         mag_mode: Literal["heading", "vector"] = "heading"
@@ -121,7 +128,9 @@ class InsEkfNavigator(Navigator):
         self.ekf = ErrorStateEKF(
             self.noise, gate_probability=params.gate_probability,
             cov_interval_s=params.cov_interval_s,
-            baro_bias_rw_m_sqrt_s=params.baro_bias_rw_m_sqrt_s, vehicle_id=ctx.vehicle_id,
+            baro_bias_rw_m_sqrt_s=params.baro_bias_rw_m_sqrt_s,
+            gnss_error_sigma_m=params.gnss_error_sigma_m, gnss_error_tau_s=params.gnss_error_tau_s,
+            vehicle_id=ctx.vehicle_id,
         )
         self._mag_model: OnboardMagneticModel | None = None
         self._airspeed: float | None = None
@@ -146,7 +155,7 @@ class InsEkfNavigator(Navigator):
         self._initialized = True
 
     def initial_covariance(self) -> np.ndarray:
-        """P0 (16, 16) from Params.initial_sigma."""
+        """P0 (19, 19) from Params.initial_sigma (GNSS error states: their steady state)."""
         s = self.params.initial_sigma
         d = np.empty(N_STATES)
         d[IP] = s.pos_m
@@ -158,6 +167,7 @@ class InsEkfNavigator(Navigator):
         d[IBG] = gyro_deg_h * DEG_TO_RAD / 3600.0
         d[IBA] = accel_ug * 1e-6 * STANDARD_GRAVITY_MPS2
         d[IBB] = s.baro_bias_m
+        d[IGN] = self.params.gnss_error_sigma_m
         return np.diag(d**2)
 
     def predict(self, imu: ImuSample) -> None:
@@ -219,7 +229,7 @@ class InsEkfNavigator(Navigator):
 
     # ------------------------------------------------------------------ extras
     def covariance(self) -> np.ndarray:
-        """Full error covariance (16, 16) in the filter's own frames (error_model layout)."""
+        """Full error covariance (19, 19) in the filter's own frames (error_model layout)."""
         return self.ekf.covariance()
 
     def error_state(self, truth: TruthState, gyro_bias_rps=None, accel_bias_mps2=None) -> np.ndarray:
@@ -242,7 +252,14 @@ class InsEkfNavigator(Navigator):
             return None
         self._last_gnss_t = t
         ekf, s = self.ekf, self.params.meas_sigma
-        pos_sigma = np.full(3, s.gnss_pos_m) if s.gnss_pos_m else np.asarray(fix.pos_sigma_m, float)
+        if s.gnss_pos_m:  # an override is the white part alone
+            pos_sigma = np.full(3, s.gnss_pos_m)
+        else:
+            # The receiver claims its total error; the correlated part is in the b_gnss states.
+            # Keep at least a tenth of the claim as white noise (a receiver claiming less than
+            # the modelled correlated error must not become an exact measurement).
+            claim2 = np.square(np.asarray(fix.pos_sigma_m, float))
+            pos_sigma = np.sqrt(np.maximum(claim2 - self.params.gnss_error_sigma_m**2, 0.01 * claim2))
         y, H, R = meas.gnss_position(ekf, fix.lat_rad, fix.lon_rad, fix.alt_m, pos_sigma)
         vel = np.asarray(fix.vel_ned_mps, float)
         if self.params.use_gnss_velocity and vel.shape == (3,) and np.all(np.isfinite(vel)):

@@ -25,7 +25,7 @@ from testbench.core.messages import (
 from testbench.core.registry import build
 from testbench.core.rotations import quat_to_dcm
 from testbench.navigation.ins.consistency import average_nees_bounds, nees_from_truth
-from testbench.navigation.ins.error_model import N_CORE, inject_nav
+from testbench.navigation.ins.error_model import N_CORE, N_STATES, inject_nav, nav_error
 from testbench.navigation.ins.magnetic import OnboardMagneticModel
 
 LAT0, LON0, H0 = math.radians(47.0), math.radians(-97.0), 800.0
@@ -59,12 +59,16 @@ def _gm(rng, b, sigma, dt):
     return a * b + sigma * math.sqrt(1 - a * a) * rng.standard_normal(3)
 
 
-def _mc_run(seed, states, ws, fs, dt, gnss_every, pos_sigma=1.5, vel_sigma=0.1):
+def _mc_run(seed, states, ws, fs, dt, gnss_every, pos_sigma=1.5, vel_sigma=0.1, corr_sigma=0.0, corr_tau_s=60.0,
+            model_corr=None, position_only=False):
+    """NEES (15 core states) at each GNSS epoch of one run. The fixes carry white noise
+    pos_sigma plus a Gauss-Markov error (corr_sigma, corr_tau_s) and claim their total sigma;
+    the navigator models that correlated part with sigma model_corr (default: corr_sigma)."""
     rng = np.random.default_rng(seed)
-    nav = _navigator()
+    nav = _navigator(gnss_error_sigma_m=corr_sigma if model_corr is None else model_corr, gnss_error_tau_s=corr_tau_s)
     noise = nav.noise
     P0 = nav.initial_covariance()
-    dx0 = rng.multivariate_normal(np.zeros(16), P0)
+    dx0 = rng.multivariate_normal(np.zeros(P0.shape[0]), P0)
     lat, lon, h, v, q = inject_nav(*states[0], -dx0[:9])  # estimate = truth (-) error (to first order)
     nav.initialize(0.0, _estimate_from(lat, lon, h, v, q))
     # True biases: drawn from the filter's own initial uncertainty, then Gauss-Markov.
@@ -73,6 +77,8 @@ def _mc_run(seed, states, ws, fs, dt, gnss_every, pos_sigma=1.5, vel_sigma=0.1):
     sg = noise.gyro_arw_rad_sqrt_s / math.sqrt(dt)
     sa = noise.accel_vrw_mps_sqrt_s / math.sqrt(dt)
     out = []
+    corr = corr_sigma * rng.standard_normal(3) if corr_sigma > 0 else np.zeros(3)
+    claim = math.hypot(pos_sigma, corr_sigma)
     for k in range(len(ws)):
         w = ws[k] + bg + sg * rng.standard_normal(3)
         f = fs[k] + ba + sa * rng.standard_normal(3)
@@ -82,11 +88,19 @@ def _mc_run(seed, states, ws, fs, dt, gnss_every, pos_sigma=1.5, vel_sigma=0.1):
         if (k + 1) % gnss_every == 0:
             lat, lon, h, v, q = states[k + 1]
             r_m, r_n = geodesy.radii_of_curvature(lat)
-            e = rng.standard_normal(3) * pos_sigma
+            if corr_sigma > 0:
+                a = math.exp(-gnss_every * dt / corr_tau_s)
+                corr = a * corr + corr_sigma * math.sqrt(1 - a * a) * rng.standard_normal(3)
+            e = rng.standard_normal(3) * pos_sigma + corr
             fix = GnssFix((k + 1) * dt, lat + e[0] / (r_m + h), lon + e[1] / ((r_n + h) * math.cos(lat)), h - e[2],
-                          v + vel_sigma * rng.standard_normal(3), np.full(3, pos_sigma), np.full(3, vel_sigma))
+                          v + vel_sigma * rng.standard_normal(3), np.full(3, claim), np.full(3, vel_sigma))
             info = nav.correct(fix)
             assert info.kind == "gnss"
+            if position_only:
+                ins = nav.ekf.ins
+                err = nav_error(lat, lon, h, v, q, ins.lat_rad, ins.lon_rad, ins.h_m, ins.vel, ins.q)[:3]
+                out.append(float(err @ np.linalg.solve(nav.ekf.P[:3, :3], err)))
+                continue
             # NEES over the 15 core states against the true biases at the time of validity.
             out.append(nees_from_truth(nav.ekf, lat, lon, h, v, q, bg, ba))
     return np.array(out)
@@ -108,6 +122,26 @@ def test_nees_within_chi_square_bounds_monte_carlo():
     lo, hi = average_nees_bounds(N_CORE, runs, 0.95)
     inside = np.mean((avg >= lo) & (avg <= hi))
     assert inside >= 0.9, f"average NEES inside [{lo:.1f}, {hi:.1f}] only {inside:.0%}: {np.round(avg, 1)}"
+
+
+def test_correlated_gnss_error_states_keep_the_filter_consistent():
+    """Fixes with a 1.5 m white and a 2 m Gauss-Markov error (tau 60 s), claiming their total
+    sigma, over 60 s: with the GNSS error states the time-averaged position NEES of 20 runs
+    stays near its 3 dof; treating the whole claim as white (no error states) leaves the
+    covariance several times too small."""
+    dt, n, runs = 0.04, 1500, 20
+    states, ws, fs = turning_flight(LAT0, LON0, H0, 30.0, dt, n, turn_rate_rps=0.1)
+
+    def pos_nees(model_corr):
+        vals = []
+        for r in range(runs):
+            vals.append(_mc_run(7000 + r, states, ws, fs, dt, gnss_every=25, corr_sigma=2.0, model_corr=model_corr,
+                                position_only=True))
+        return np.mean(vals)
+
+    modelled, white = pos_nees(None), pos_nees(0.0)
+    assert 1.5 < modelled < 5.0, modelled
+    assert white > 2.0 * modelled, (white, modelled)
 
 
 def _converged_static_nav():
@@ -147,7 +181,7 @@ def test_dispatch_and_estimate():
     assert np.all(np.abs(est.omega_b_rps) < 1e-6)  # the Earth's rate is removed
     for c in (est.cov_pos_ned_m2, est.cov_vel_ned_m2s2, est.cov_att_rad2):
         assert np.all(np.linalg.eigvalsh(c) > 0)
-    assert nav.covariance().shape == (16, 16)
+    assert nav.covariance().shape == (N_STATES, N_STATES)
     baro = nav.correct(BaroSample(10.0, 90000.0, H0 + 1.0))
     assert baro is None  # use_baro off in these tests
     nav2 = _navigator(use_baro=True, use_mag=True)

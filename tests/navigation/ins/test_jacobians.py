@@ -14,7 +14,7 @@ from testbench.core.interfaces import GeodeticOrigin
 from testbench.core.rotations import dcm_to_euler, euler_to_quat, quat_multiply, quat_to_dcm, rotvec_to_quat
 from testbench.navigation.ins import measurements as meas
 from testbench.navigation.ins.ekf import ErrorStateEKF
-from testbench.navigation.ins.error_model import N_CORE, continuous_F, inject_nav, nav_error
+from testbench.navigation.ins.error_model import N_CORE, N_STATES, continuous_F, inject_nav, nav_error
 from testbench.navigation.ins.imu_noise import imu_noise_from_datasheet
 
 TAU_G, TAU_A = 300.0, 200.0
@@ -87,7 +87,8 @@ def _ekf_at(x_hat):
     noise = imu_noise_from_datasheet(0.15, 7.0, 0.02, 14.0)
     ekf = ErrorStateEKF(noise)
     lat, lon, h, v, q = x_hat
-    ekf.initialize(0.0, lat, lon, h, v, q, np.eye(16))
+    ekf.initialize(0.0, lat, lon, h, v, q, np.eye(N_STATES))
+    ekf.b_gnss = np.array([0.7, -0.4, 1.1])
     ekf.b_baro = 1.5
     return ekf
 
@@ -95,12 +96,12 @@ def _ekf_at(x_hat):
 def _numeric_H(ekf, model, steps):
     """H = -d y / d dx, evaluating the residual with the nominal replaced by nominal (+) dx."""
     y0 = model(ekf)[0]
-    H = np.empty((y0.size, 16))
-    for j in range(16):
+    H = np.empty((y0.size, N_STATES))
+    for j in range(N_STATES):
         ys = []
         for sign in (1.0, -1.0):
             e = copy.deepcopy(ekf)
-            d = np.zeros(16)
+            d = np.zeros(N_STATES)
             d[j] = sign * steps[j]
             e.inject(d)
             ys.append(model(e)[0])
@@ -108,7 +109,7 @@ def _numeric_H(ekf, model, steps):
     return H
 
 
-STEPS = np.array([1.0] * 3 + [0.01] * 3 + [1e-5] * 3 + [1e-6] * 3 + [1e-3] * 3 + [0.1])
+STEPS = np.array([1.0] * 3 + [0.01] * 3 + [1e-5] * 3 + [1e-6] * 3 + [1e-3] * 3 + [0.1] + [0.1] * 3)
 X_HAT = (0.7, -1.6, 1200.0, np.array([40.0, -25.0, 3.0]), euler_to_quat(np.radians([8.0, -4.0, 140.0])))
 ORIGIN = GeodeticOrigin(0.7 - 3000 / 6.37e6, -1.6 + 2000 / 4.9e6, 300.0)
 B_NED = np.array([17e-6, 1e-6, 52e-6])
