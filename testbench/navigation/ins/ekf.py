@@ -1,15 +1,16 @@
-"""Error-state extended Kalman filter around the strapdown INS (19 states, error_model.py).
+"""Error-state extended Kalman filter around the strapdown INS (22 states, error_model.py).
 
 Nominal state: the strapdown INS (lat, lon, h, v_ned, q_nb) plus gyro bias b_g (rad/s),
 accelerometer bias b_a (m/s^2), barometer bias b_baro (m) and the GNSS receiver's correlated
-position error b_gnss (NED m), all Gauss-Markov processes.
+position error b_gnss (NED m) and the error that successive position fixes share b_fix
+(origin NED m), all Gauss-Markov processes.
 
 Prediction runs the mechanisation at every IMU sample (~11 us). The covariance is propagated
 at a lower rate: the IMU samples of `cov_interval_s` (default 0.05 s, i.e. 5-10 IMU samples)
 are accumulated (elapsed time and the specific force resolved in NED) and P is propagated
 once over that interval with Phi = I + F T + (F T)^2 / 2 built at the end of it. F changes
 slowly (attitude by a few centiradians in a turn over 0.05 s), so the error of this choice is
-far below the model's own approximations, and it divides the cost of the 19 x 19 matrix
+far below the model's own approximations, and it divides the cost of the 22 x 22 matrix
 work by the number of samples. Every update first flushes the pending interval, so P is
 always current when a measurement is used.
 
@@ -33,6 +34,7 @@ from testbench.navigation.ins.error_model import (
     IBA,
     IBB,
     IBG,
+    IFX,
     IGN,
     IV,
     N_STATES,
@@ -53,31 +55,36 @@ def chi2_threshold(probability: float, dof: int) -> float:
 
 
 class ErrorStateEKF:
-    """Error-state EKF of one vehicle. Shapes: P (19, 19); error vector layout in error_model.
+    """Error-state EKF of one vehicle. Shapes: P (22, 22); error vector layout in error_model.
 
     noise: IMU noise model; gate_probability: chi-square gate (e.g. 0.999; 1.0 disables);
     cov_interval_s: covariance propagation interval (0: every IMU sample);
     baro_bias_rw_m_sqrt_s: random walk of the barometer bias state;
     gnss_error_sigma_m, gnss_error_tau_s: steady-state sigma per axis and correlation time of
-    the GNSS receiver's correlated position error (0 sigma: no such error is modelled).
+    the GNSS receiver's correlated position error (0 sigma: no such error is modelled);
+    fix_error_sigma_m, fix_error_tau_s: the same for the error successive position fixes share.
     vehicle_id is only used in error messages.
     """
 
     def __init__(self, noise: ImuNoiseSI, *, gate_probability: float = 0.999,
                  cov_interval_s: float = 0.05, baro_bias_rw_m_sqrt_s: float = 0.01,
                  gnss_error_sigma_m: float = 0.0, gnss_error_tau_s: float = math.inf,
+                 fix_error_sigma_m: float = 0.0, fix_error_tau_s: float = math.inf,
                  vehicle_id: str | None = None):
         self.noise = noise
         self.gate_probability = float(gate_probability)
         self.cov_interval_s = float(cov_interval_s)
         self.vehicle_id = vehicle_id
         self.gnss_error_tau_s = float(gnss_error_tau_s)
-        self._qc = process_noise_diag(noise, baro_bias_rw_m_sqrt_s, gnss_error_sigma_m, self.gnss_error_tau_s)
+        self.fix_error_tau_s = float(fix_error_tau_s)
+        self._qc = process_noise_diag(noise, baro_bias_rw_m_sqrt_s, gnss_error_sigma_m, self.gnss_error_tau_s,
+                                      fix_error_sigma_m, self.fix_error_tau_s)
         self.ins: StrapdownINS | None = None
         self.b_g = np.zeros(3)
         self.b_a = np.zeros(3)
         self.b_baro = 0.0
         self.b_gnss = np.zeros(3)
+        self.b_fix = np.zeros(3)
         self.P = np.zeros((N_STATES, N_STATES))
         self.omega_ib_b_rps = np.zeros(3)  # last bias-corrected gyro rate
         self._acc_T = 0.0
@@ -86,12 +93,13 @@ class ErrorStateEKF:
     # ------------------------------------------------------------------ state
     def initialize(self, t_s: float, lat_rad: float, lon_rad: float, h_m: float, vel_ned_mps,
                    q_nb_wxyz, P0: np.ndarray, b_g=None, b_a=None, b_baro: float = 0.0) -> None:
-        """Set the nominal state and its error covariance P0 (19, 19); the GNSS error starts at 0."""
+        """Set the nominal state and its error covariance P0 (22, 22); the GNSS and fix errors start at 0."""
         self.ins = StrapdownINS(t_s, lat_rad, lon_rad, h_m, vel_ned_mps, q_nb_wxyz)
         self.b_g = np.zeros(3) if b_g is None else np.array(b_g, float)
         self.b_a = np.zeros(3) if b_a is None else np.array(b_a, float)
         self.b_baro = float(b_baro)
         self.b_gnss = np.zeros(3)
+        self.b_fix = np.zeros(3)
         self.P = np.array(P0, float)
         self._acc_T = 0.0
         self._acc_fn = [0.0, 0.0, 0.0]
@@ -112,7 +120,7 @@ class ErrorStateEKF:
         ])
 
     def covariance(self) -> np.ndarray:
-        """Current error covariance (19, 19), with any pending propagation applied."""
+        """Current error covariance (22, 22), with any pending propagation applied."""
         self.flush()
         return self.P.copy()
 
@@ -147,7 +155,7 @@ class ErrorStateEKF:
         ins, n = self.ins, self.noise
         f_n = np.array(self._acc_fn) / T
         F = continuous_F(ins.lat_rad, ins.h_m, ins.vel, self.C_nb, f_n,
-                         n.gyro_bias_tau_s, n.accel_bias_tau_s, tau_gnss_s=self.gnss_error_tau_s)
+                         n.gyro_bias_tau_s, n.accel_bias_tau_s, tau_gnss_s=self.gnss_error_tau_s, tau_fix_s=self.fix_error_tau_s)
         Phi, Qd = discretize(F, self._qc, T)
         P = Phi @ self.P @ Phi.T + Qd
         self.P = 0.5 * (P + P.T)
@@ -156,13 +164,15 @@ class ErrorStateEKF:
         self.b_a *= math.exp(-T / n.accel_bias_tau_s)
         if math.isfinite(self.gnss_error_tau_s):
             self.b_gnss *= math.exp(-T / self.gnss_error_tau_s)
+        if math.isfinite(self.fix_error_tau_s):
+            self.b_fix *= math.exp(-T / self.fix_error_tau_s)
         self._acc_T = 0.0
         self._acc_fn = [0.0, 0.0, 0.0]
         self._check("covariance propagation")
 
     # ---------------------------------------------------------------- updates
     def update(self, kind: str, t_s: float, y, H, R, gate: bool = True) -> CorrectionInfo:
-        """Kalman update with residual y (m,), Jacobian H (m, 19), noise R (m, m).
+        """Kalman update with residual y (m,), Jacobian H (m, 22), noise R (m, m).
 
         The NIS y^T S^-1 y is compared with the chi-square quantile at gate_probability;
         a rejected measurement leaves the state untouched.
@@ -200,7 +210,7 @@ class ErrorStateEKF:
                               nis=nis, accepted=accepted)
 
     def inject(self, dx: np.ndarray) -> None:
-        """Nominal <- nominal (+) dx (19,)."""
+        """Nominal <- nominal (+) dx (22,)."""
         ins = self.ins
         lat, lon, h, v, q = inject_nav(ins.lat_rad, ins.lon_rad, ins.h_m, ins.vel, ins.q, dx)
         ins.lat_rad, ins.lon_rad, ins.h_m = lat, lon, h
@@ -210,6 +220,7 @@ class ErrorStateEKF:
         self.b_a = self.b_a + dx[IBA]
         self.b_baro += float(dx[IBB])
         self.b_gnss = self.b_gnss + dx[IGN]
+        self.b_fix = self.b_fix + dx[IFX]
 
     # ------------------------------------------------------------------ guard
     def _check(self, where: str) -> None:

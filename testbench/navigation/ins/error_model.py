@@ -11,7 +11,10 @@ Error convention (truth = nominal (+) error):
 - dgn (3): error of the GNSS receiver's slowly varying position error (NED m): the part of
   a fix error that is correlated over tens of seconds (ionosphere, orbit/clock, multipath),
   a first-order Gauss-Markov process, so that fusing fix after fix does not average it away
-  as if it were white (which made the covariance several times too small).
+  as if it were white (which made the covariance several times too small);
+- dfx (3): error of the position-fix (scene-matching) error that successive fixes share
+  (origin NED m): overlapping frames matched against the same map disagree with it in the
+  same way (season, map georeference, relief), a Gauss-Markov process along the flight.
 The nominal biases are subtracted from the raw IMU data: omega = omega_meas - b_g.
 
 Continuous error dynamics (phi-angle model, Titterton & Weston ch. 12 / Groves ch. 14, in
@@ -46,14 +49,15 @@ IBG = slice(9, 12)
 IBA = slice(12, 15)
 IBB = 15
 IGN = slice(16, 19)
-N_STATES = 19
+IFX = slice(19, 22)
+N_STATES = 22
 N_CORE = 15
 """Number of states that truth can be compared with (without the barometer bias)."""
 
 
 def continuous_F(lat_rad, h_m, vel_ned_mps, C_nb, f_n_mps2, tau_g_s, tau_a_s, tau_baro_s=math.inf,
-                 tau_gnss_s=math.inf):
-    """Continuous-time error-state Jacobian F (19, 19) at one nominal state.
+                 tau_gnss_s=math.inf, tau_fix_s=math.inf):
+    """Continuous-time error-state Jacobian F (22, 22) at one nominal state.
 
     lat_rad, h_m: nominal position; vel_ned_mps (3,); C_nb (3, 3) body->NED;
     f_n_mps2 (3,): specific force resolved in NED (C_nb f_b); tau_*: bias correlation times (s).
@@ -116,12 +120,15 @@ def continuous_F(lat_rad, h_m, vel_ned_mps, C_nb, f_n_mps2, tau_g_s, tau_a_s, ta
     F[IBB, IBB] = -1.0 / tau_baro_s if math.isfinite(tau_baro_s) else 0.0
     g = -1.0 / tau_gnss_s if math.isfinite(tau_gnss_s) else 0.0
     F[16, 16] = F[17, 17] = F[18, 18] = g
+    g = -1.0 / tau_fix_s if math.isfinite(tau_fix_s) else 0.0
+    F[19, 19] = F[20, 20] = F[21, 21] = g
     return F
 
 
 def process_noise_diag(noise, baro_bias_rw_m_sqrt_s: float, gnss_error_sigma_m: float = 0.0,
-                       gnss_error_tau_s: float = math.inf) -> np.ndarray:
-    """Diagonal of G Qc G^T (19,): continuous process-noise PSD mapped into the error states.
+                       gnss_error_tau_s: float = math.inf, fix_error_sigma_m: float = 0.0,
+                       fix_error_tau_s: float = math.inf) -> np.ndarray:
+    """Diagonal of G Qc G^T (22,): continuous process-noise PSD mapped into the error states.
 
     The white gyro and accelerometer noises enter through -C_nb; they are isotropic, so
     C_nb (s^2 I) C_nb^T = s^2 I and the mapped PSD stays diagonal. Bias driving noise of a
@@ -136,6 +143,7 @@ def process_noise_diag(noise, baro_bias_rw_m_sqrt_s: float, gnss_error_sigma_m: 
     q[IBA] = 2.0 * noise.accel_bias_sigma_mps2**2 / noise.accel_bias_tau_s + noise.accel_rrw_mps2_sqrt_s**2
     q[IBB] = baro_bias_rw_m_sqrt_s**2
     q[IGN] = 2.0 * gnss_error_sigma_m**2 / gnss_error_tau_s if math.isfinite(gnss_error_tau_s) else 0.0
+    q[IFX] = 2.0 * fix_error_sigma_m**2 / fix_error_tau_s if math.isfinite(fix_error_tau_s) else 0.0
     return q
 
 

@@ -1,5 +1,5 @@
 """Measurement models of the error-state EKF: residual y = z - h(nominal), Jacobian
-H = d h(nominal (+) error) / d error at zero error (19 columns, error_model layout), noise R.
+H = d h(nominal (+) error) / d error at zero error (22 columns, error_model layout), noise R.
 
 Each function takes the filter (`ErrorStateEKF`) for its nominal state and returns (y, H, R).
 """
@@ -14,7 +14,7 @@ import numpy as np
 from testbench.core import geodesy
 from testbench.core.interfaces import GeodeticOrigin
 from testbench.core.rotations import dcm_to_euler, skew, wrap_pi
-from testbench.navigation.ins.error_model import IA, IBB, IGN, IP, IV, N_STATES
+from testbench.navigation.ins.error_model import IA, IBB, IFX, IGN, IP, IV, N_STATES
 
 
 def gnss_position(ekf, lat_rad: float, lon_rad: float, alt_m: float, sigma_ned_m):
@@ -75,11 +75,14 @@ def nominal_pos_ned(ekf, origin: GeodeticOrigin) -> np.ndarray:
 
 
 def position_ned(ekf, pos_ned_m, cov_ned_m2, origin: GeodeticOrigin):
-    """Position fix in NED at the scenario origin (scene matching); H = [R_on 0 ...]."""
+    """Position fix in NED at the scenario origin (scene matching): the true position plus the
+    error successive fixes share (the b_fix state, origin NED) plus white noise of covariance
+    cov_ned_m2; H = [R_on 0 ... I]."""
     ins = ekf.ins
-    y = np.asarray(pos_ned_m, float) - nominal_pos_ned(ekf, origin)
+    y = np.asarray(pos_ned_m, float) - nominal_pos_ned(ekf, origin) - ekf.b_fix
     H = np.zeros((3, N_STATES))
     H[:, IP] = origin_rotation(ins.lat_rad, ins.lon_rad, origin)
+    H[:, IFX] = np.eye(3)
     return y, H, np.asarray(cov_ned_m2, float)
 
 

@@ -29,7 +29,7 @@ from testbench.core.units import DEG_TO_RAD, STANDARD_GRAVITY_MPS2
 from testbench.navigation.ins import measurements as meas
 from testbench.navigation.ins.consistency import error_state
 from testbench.navigation.ins.ekf import ErrorStateEKF
-from testbench.navigation.ins.error_model import IA, IBA, IBB, IBG, IGN, IP, IV, N_STATES
+from testbench.navigation.ins.error_model import IA, IBA, IBB, IBG, IFX, IGN, IP, IV, N_STATES
 from testbench.navigation.ins.imu_noise import imu_noise_from_datasheet, preset_datasheet, preset_names
 from testbench.navigation.ins.magnetic import OnboardMagneticModel
 
@@ -101,6 +101,15 @@ class InsEkfNavigator(Navigator):
         (pos_corr_sigma_m, pos_corr_s). A fix's claimed sigma is split into this part and a
         white remainder; without these states, fusing fix after fix would average the
         correlated error away and leave the covariance several times too small."""
+        fix_error_sigma_m: float = pydantic.Field(0.3, ge=0.0)
+        fix_error_tau_s: float = pydantic.Field(60.0, gt=0.0)
+        """The same for position fixes (scene matching): the part of a fix's error that
+        successive fixes share, because overlapping frames meet the same disagreement between
+        the scene and the map (season, map georeference, relief). It is taken out of each
+        fix's claimed covariance and carried by three Gauss-Markov states. Default: the ISMN
+        pipeline's default sigma_floor_m (0.3 m, the error its fixes cannot average) over 60 s
+        (about the time to fly one 800 m-altitude footprint); a scenario that raises the
+        matcher's floor (another year of real imagery) raises this with it."""
         use_baro: bool = True
         use_mag: bool = True
         mag_mode: Literal["heading", "vector"] = "heading"
@@ -130,6 +139,7 @@ class InsEkfNavigator(Navigator):
             cov_interval_s=params.cov_interval_s,
             baro_bias_rw_m_sqrt_s=params.baro_bias_rw_m_sqrt_s,
             gnss_error_sigma_m=params.gnss_error_sigma_m, gnss_error_tau_s=params.gnss_error_tau_s,
+            fix_error_sigma_m=params.fix_error_sigma_m, fix_error_tau_s=params.fix_error_tau_s,
             vehicle_id=ctx.vehicle_id,
         )
         self._mag_model: OnboardMagneticModel | None = None
@@ -155,7 +165,7 @@ class InsEkfNavigator(Navigator):
         self._initialized = True
 
     def initial_covariance(self) -> np.ndarray:
-        """P0 (19, 19) from Params.initial_sigma (GNSS error states: their steady state)."""
+        """P0 (22, 22) from Params.initial_sigma (GNSS and fix error states: their steady state)."""
         s = self.params.initial_sigma
         d = np.empty(N_STATES)
         d[IP] = s.pos_m
@@ -168,6 +178,7 @@ class InsEkfNavigator(Navigator):
         d[IBA] = accel_ug * 1e-6 * STANDARD_GRAVITY_MPS2
         d[IBB] = s.baro_bias_m
         d[IGN] = self.params.gnss_error_sigma_m
+        d[IFX] = self.params.fix_error_sigma_m
         return np.diag(d**2)
 
     def predict(self, imu: ImuSample) -> None:
@@ -181,9 +192,13 @@ class InsEkfNavigator(Navigator):
         if isinstance(measurement, PositionFix):
             if not p.use_position_fix:
                 return None
-            y, H, R = meas.position_ned(ekf, measurement.pos_ned_m,
-                                        np.asarray(measurement.cov_ned_m2) * p.meas_sigma.position_fix_scale**2,
-                                        self.ctx.origin)
+            cov = np.asarray(measurement.cov_ned_m2, float) * p.meas_sigma.position_fix_scale**2
+            # The shared part is in the b_fix states; what is left is white. A fix claiming
+            # less than the shared error keeps 1 % of its smallest eigenvalue as white noise
+            # (never an exact measurement).
+            lam_min = float(np.linalg.eigvalsh(0.5 * (cov + cov.T)).min())
+            white = cov - min(p.fix_error_sigma_m**2, 0.99 * lam_min) * np.eye(3)
+            y, H, R = meas.position_ned(ekf, measurement.pos_ned_m, white, self.ctx.origin)
             return ekf.update(f"position_fix:{measurement.source}", t, y, H, R)
         if isinstance(measurement, BaroSample):
             if not p.use_baro:
@@ -229,7 +244,7 @@ class InsEkfNavigator(Navigator):
 
     # ------------------------------------------------------------------ extras
     def covariance(self) -> np.ndarray:
-        """Full error covariance (19, 19) in the filter's own frames (error_model layout)."""
+        """Full error covariance (22, 22) in the filter's own frames (error_model layout)."""
         return self.ekf.covariance()
 
     def error_state(self, truth: TruthState, gyro_bias_rps=None, accel_bias_mps2=None) -> np.ndarray:
