@@ -36,6 +36,7 @@ from testbench.navigation.ins.error_model import (
     IBG,
     IFX,
     IGN,
+    IP,
     IV,
     N_STATES,
     continuous_F,
@@ -208,6 +209,32 @@ class ErrorStateEKF:
             self._check(f"{kind} update")
         return CorrectionInfo(t_s=float(t_s), kind=kind, innovation=y, innovation_cov=S,
                               nis=nis, accepted=accepted)
+
+    def reset_position(self, kind: str, t_s: float, y, H, R, elapsed_s: float) -> CorrectionInfo:
+        """Re-acquire the position from a fix the gate keeps rejecting (residual y (3,) in
+        origin NED m, Jacobian H (3, 22), noise R (3, 3)), after elapsed_s seconds without an
+        accepted one.
+
+        The position block of P becomes what the disagreement says, H_p^T (y y^T + R) H_p in
+        the error frame, with its cross-covariances cleared (the old correlations described a
+        filter that was wrong); the velocity variance grows by (y / elapsed_s)^2, the velocity
+        error that would explain the disagreement; then the fix is fused without the gate. The
+        returned info carries the NIS the gate saw before the reset, and accepted=True.
+        """
+        self.flush()
+        y = np.asarray(y, float)
+        Hp = np.asarray(H, float)[:, IP]
+        nis_before = float(y @ np.linalg.solve(np.asarray(H) @ self.P @ np.asarray(H).T + R, y))
+        P = self.P.copy()
+        P[IP, :] = 0.0
+        P[:, IP] = 0.0
+        P[IP, IP] = Hp.T @ (np.outer(y, y) + np.asarray(R, float)) @ Hp
+        dv_mps = (Hp.T @ y) / max(float(elapsed_s), 1.0)
+        P[IV, IV] += np.diag(dv_mps**2)
+        self.P = 0.5 * (P + P.T)
+        info = self.update(kind, t_s, y, H, R, gate=False)
+        return CorrectionInfo(t_s=info.t_s, kind=info.kind, innovation=info.innovation,
+                              innovation_cov=info.innovation_cov, nis=nis_before, accepted=True)
 
     def inject(self, dx: np.ndarray) -> None:
         """Nominal <- nominal (+) dx (22,)."""

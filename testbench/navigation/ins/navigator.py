@@ -110,6 +110,13 @@ class InsEkfNavigator(Navigator):
         pipeline's default sigma_floor_m (0.3 m, the error its fixes cannot average) over 60 s
         (about the time to fly one 800 m-altitude footprint); a scenario that raises the
         matcher's floor (another year of real imagery) raises this with it."""
+        fix_reset_after_s: float = pydantic.Field(5.0, ge=0.0)
+        """Position fixes that keep arriving and keep failing the gate for this long (s) mean
+        the filter, not the fixes, has lost the position (a streak of biased fixes it accepted
+        left it confident and wrong): the next fix resets the position to it, as PX4's EKF2
+        resets to GNSS after a fusion timeout (EKF.reset_position). 0 disables the reset. A
+        matcher that is consistently wrong for this long is followed: the price of never
+        diverging for good on an overconfident covariance."""
         use_baro: bool = True
         use_mag: bool = True
         mag_mode: Literal["heading", "vector"] = "heading"
@@ -146,6 +153,7 @@ class InsEkfNavigator(Navigator):
         self._airspeed: float | None = None
         self._initialized = False
         self._last_gnss_t = -math.inf
+        self._last_fix_ok_t_s: float | None = None  # last accepted position fix (None: none yet)
 
     # ----------------------------------------------------------- Navigator API
     def initialize(self, t_s: float, initial: NavEstimate) -> None:
@@ -199,7 +207,14 @@ class InsEkfNavigator(Navigator):
             lam_min = float(np.linalg.eigvalsh(0.5 * (cov + cov.T)).min())
             white = cov - min(p.fix_error_sigma_m**2, 0.99 * lam_min) * np.eye(3)
             y, H, R = meas.position_ned(ekf, measurement.pos_ned_m, white, self.ctx.origin)
-            return ekf.update(f"position_fix:{measurement.source}", t, y, H, R)
+            kind = f"position_fix:{measurement.source}"
+            info = ekf.update(kind, t, y, H, R)
+            if self._last_fix_ok_t_s is None or info.accepted:
+                self._last_fix_ok_t_s = t
+            elif p.fix_reset_after_s > 0.0 and t - self._last_fix_ok_t_s >= p.fix_reset_after_s:
+                info = ekf.reset_position(f"{kind}:reset", t, y, H, R, t - self._last_fix_ok_t_s)
+                self._last_fix_ok_t_s = t
+            return info
         if isinstance(measurement, BaroSample):
             if not p.use_baro:
                 return None

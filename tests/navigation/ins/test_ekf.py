@@ -170,6 +170,34 @@ def test_gating_rejects_wrong_position_fix_and_accepts_good_one():
     assert good.kind == "position_fix:ismn"
 
 
+def test_fixes_rejected_past_the_timeout_reset_the_position():
+    """A filter confidently 200 m off (fixes rejected) re-acquires after fix_reset_after_s of
+    rejections: the next fix resets the position to it; with the reset off it never does."""
+    true_ned = geodesy.geodetic_to_ned(LAT0, LON0, H0, ORIGIN.lat_rad, ORIGIN.lon_rad, ORIGIN.alt_m)
+    cov = np.diag([4.0, 4.0, 9.0])
+    fix = true_ned + np.array([200.0, 0.0, 0.0])  # the filter thinks it is 200 m south of here
+    for reset_after_s, expect_reset in ((5.0, True), (0.0, False)):
+        nav = _converged_static_nav()
+        nav.params = nav.params.model_copy(update={"fix_reset_after_s": reset_after_s})
+        w, f = static_imu(LAT0, H0, np.array([1.0, 0, 0, 0]))
+        infos = []
+        for k in range(1, 9):  # a fix a second at t = 11..18 s
+            t = 10.0 + k
+            nav.predict(ImuSample(t, w, f))
+            infos.append(nav.correct(PositionFix(t, fix, cov, 0.9)))
+        kinds = [i.kind for i in infos]
+        if expect_reset:
+            # the first one sets the clock; rejected for 5 s after it; the sixth resets
+            assert [i.accepted for i in infos[:6]] == [False] * 5 + [True]
+            assert kinds[5] == "position_fix:ismn:reset" and infos[5].nis > 100.0
+            err = np.linalg.norm(nav.estimate().pos_ned_m - fix)
+            assert err < 3.0, err
+            assert all(i.accepted for i in infos[6:]) and kinds[6] == "position_fix:ismn"
+        else:
+            assert not any(i.accepted for i in infos)
+            assert np.linalg.norm(nav.estimate().pos_ned_m - true_ned) < 10.0
+
+
 def test_dispatch_and_estimate():
     nav = _converged_static_nav()
     assert nav.correct(UwbRange(10.0, "uav1", 50.0, -70.0)) is None
