@@ -12,7 +12,7 @@ from pathlib import Path
 
 from testbench.batch.batch import run_batch
 from testbench.batch.plan import BatchPlan
-from testbench.sim.bench import SCENARIOS_DIR, scenario_rtf
+from testbench.sim.bench import SCENARIOS_DIR, scenario_rtf, sensor_suite_share
 
 # Shipped scenario -> simulated seconds used for its real-time factor. Scenarios that need the
 # real geodata are measured only where it is available.
@@ -28,6 +28,30 @@ RTF_DURATIONS_S = {
     "swarm_fixedwing": 20.0,
     "swarm_canyon_nlos": 20.0,
 }
+
+
+SWARM_IDS = tuple(f"uav{i}" for i in range(10))
+
+
+def oracle_swarm_overrides() -> tuple[str, ...]:
+    """paper_swarm_relnav without pixels: every camera gives truth annotations only
+    (render_image=false) and every vehicle's relative navigation uses the oracle detector
+    (0.5 px noise), the issue's "without cameras" case."""
+    out: list[str] = []
+    for v in SWARM_IDS:
+        out += [f"vehicles.{v}.sensors.{cam}.render_image=false" for cam in ("front", "left", "right")]
+        out.append(f"vehicles.{v}.aids.relnav.detector={{type: oracle, params: {{sigma_px: 0.5}}}}")
+    return tuple(out)
+
+
+def swarm_figures(duration_s: float = 20.0) -> dict[str, float]:
+    """The ten-quad swarm with cameras off (oracle detector): its real-time factor and the
+    share of its wall time the non-camera sensor suite of the ten vehicles costs."""
+    res = sensor_suite_share("paper_swarm_relnav", duration_s, oracle_swarm_overrides())
+    return {
+        "scenarios.paper_swarm_relnav_oracle.real_time_factor": res["real_time_factor"],
+        "sensors.suite_share_of_swarm_run_no_cameras": res["share"],
+    }
 
 
 def montecarlo_speedup(runs: int = 4, scenario: str = "paper_ismn_800m", duration_s: float = 60.0) -> dict[str, float]:
@@ -60,5 +84,6 @@ def run_benchmarks() -> dict[str, float]:
             print(f"  (skipping {name}: set TESTBENCH_DATA to the shared data folder)", file=sys.stderr)
             continue
         figures[f"scenarios.{name}.real_time_factor"] = scenario_rtf(name, duration)
+    figures.update(swarm_figures())
     figures.update(montecarlo_speedup())
     return figures

@@ -82,5 +82,35 @@ def scenario_rtf(name: str, duration_s: float, overrides: tuple[str, ...] = ()) 
     return res.sim_time_s / res.wall_time_s
 
 
+def sensor_suite_share(name: str, duration_s: float, overrides: tuple[str, ...] = ()) -> dict[str, float]:
+    """Share of a run's wall time spent in its non-camera sensors' `measure` (IMU, magnetometer,
+    barometer, GNSS, UWB, airspeed ...), timed around each call in the real engine, and the
+    run's real-time factor. Cameras are excluded from the sum (their renders are the camera
+    budget, not the sensor suite's)."""
+    from testbench.sensors.camera import CameraSensor
+
+    loaded = load_scenario(SCENARIOS_DIR / f"{name}.yaml", [f"duration_s={duration_s}", *overrides])
+    engine, _, _ = build_engine(loaded)
+    spent = [0.0]
+    for v in engine.vehicles:
+        for slot in v.sensors:
+            if isinstance(slot.sensor, CameraSensor):
+                continue
+            measure = slot.sensor.measure
+
+            def timed(truth, view, rng, _m=measure):
+                t0 = time.perf_counter()
+                try:
+                    return _m(truth, view, rng)
+                finally:
+                    spent[0] += time.perf_counter() - t0
+
+            slot.sensor.measure = timed
+    res = engine.run()
+    if res.aborted:
+        raise RuntimeError(f"{name} aborted: {res.aborted}")
+    return {"share": spent[0] / res.wall_time_s, "real_time_factor": res.sim_time_s / res.wall_time_s}
+
+
 def run_benchmarks() -> dict[str, float]:
     return engine_overhead()
