@@ -23,6 +23,17 @@ def data_dir() -> Path | None:
     return p if p.is_dir() else None
 
 
+def use_data_if_scenario_needs_it(path: Path, monkeypatch) -> None:
+    """For a scenario that names ${TESTBENCH_DATA}: point the variable at the real-data folder,
+    or skip the test (with the reason) when it is absent."""
+    if "${TESTBENCH_DATA}" not in path.read_text():
+        return
+    d = data_dir()
+    if d is None:
+        pytest.skip(f"{path.name} needs the real geodata: set TESTBENCH_DATA to the shared data folder")
+    monkeypatch.setenv("TESTBENCH_DATA", str(d))
+
+
 @pytest.fixture
 def realdata() -> Path:
     """Skip (with the reason) unless the real geodata of ../shared/data is available."""

@@ -2,12 +2,12 @@
 the real command line (in-process) and ends with a known exit status."""
 
 import json
-import os
 from pathlib import Path
 
 import pytest
 
 from testbench.cli import main
+from tests.conftest import use_data_if_scenario_needs_it
 
 REPO = Path(__file__).resolve().parents[2]
 SCENARIOS = sorted((REPO / "scenarios").glob("*.yaml"))
@@ -18,13 +18,7 @@ SMOKE_DURATION_S = {"default": 6.0, "swarm_cnn": 2.0}
 
 @pytest.mark.parametrize("path", SCENARIOS, ids=[p.stem for p in SCENARIOS])
 def test_scenario_smoke(path, tmp_path, monkeypatch):
-    if "${TESTBENCH_DATA}" in path.read_text():
-        from tests.conftest import data_dir
-
-        d = data_dir()
-        if d is None:
-            pytest.skip(f"{path.name} needs the real geodata: set TESTBENCH_DATA to the shared data folder")
-        monkeypatch.setenv("TESTBENCH_DATA", str(d))
+    use_data_if_scenario_needs_it(path, monkeypatch)
     out = tmp_path / "run"
     duration_s = SMOKE_DURATION_S.get(path.stem, SMOKE_DURATION_S["default"])
     code = main(["run", str(path), "--set", f"duration_s={duration_s}", "--out", str(out), "--quiet"])

@@ -26,6 +26,7 @@ from pathlib import Path
 import pytest
 
 from testbench.cli import main
+from tests.conftest import use_data_if_scenario_needs_it
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -56,13 +57,7 @@ def _cases():
 @pytest.mark.parametrize("name", list(_cases()))
 def test_short_scenario_passes_its_thresholds(name, tmp_path, monkeypatch):
     path = REPO / "scenarios" / f"{name}.yaml"
-    if "${TESTBENCH_DATA}" in path.read_text():
-        from tests.conftest import data_dir
-
-        d = data_dir()
-        if d is None:
-            pytest.skip(f"{name} needs the real geodata: set TESTBENCH_DATA to the shared data folder")
-        monkeypatch.setenv("TESTBENCH_DATA", str(d))
+    use_data_if_scenario_needs_it(path, monkeypatch)
     out = tmp_path / "run"
     args = ["run", str(path), "--out", str(out), "--no-report", "--quiet"]
     if GATED[name] is not None:
