@@ -56,9 +56,3 @@ def run_benchmarks(n_frames: int = 20, seed: int = 0) -> dict[str, float]:
         }
     finally:
         cv2.setNumThreads(threads)
-
-
-if __name__ == "__main__":  # pragma: no cover
-    import json
-
-    print(json.dumps(run_benchmarks(), indent=1))

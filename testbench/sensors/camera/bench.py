@@ -130,9 +130,3 @@ def run_benchmarks(repeats: int = 9, seed: int = 0) -> dict[str, float]:
         return out
     finally:
         cv2.setNumThreads(threads)
-
-
-if __name__ == "__main__":  # pragma: no cover
-    import json
-
-    print(json.dumps(run_benchmarks(), indent=1))
