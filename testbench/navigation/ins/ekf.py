@@ -63,14 +63,15 @@ class ErrorStateEKF:
     baro_bias_rw_m_sqrt_s: random walk of the barometer bias state;
     gnss_error_sigma_m, gnss_error_tau_s: steady-state sigma per axis and correlation time of
     the GNSS receiver's correlated position error (0 sigma: no such error is modelled);
-    fix_error_sigma_m, fix_error_tau_s: the same for the error successive position fixes share.
+    fix_error_sigma_m, fix_error_tau_s: the same for the error successive position fixes share
+    (sigma: one figure for every axis, or (3,) per NED axis).
     vehicle_id is only used in error messages.
     """
 
     def __init__(self, noise: ImuNoiseSI, *, gate_probability: float = 0.999,
                  cov_interval_s: float = 0.05, baro_bias_rw_m_sqrt_s: float = 0.01,
                  gnss_error_sigma_m: float = 0.0, gnss_error_tau_s: float = math.inf,
-                 fix_error_sigma_m: float = 0.0, fix_error_tau_s: float = math.inf,
+                 fix_error_sigma_m: float | np.ndarray = 0.0, fix_error_tau_s: float = math.inf,
                  vehicle_id: str | None = None):
         self.noise = noise
         self.gate_probability = float(gate_probability)

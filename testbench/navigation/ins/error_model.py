@@ -126,7 +126,7 @@ def continuous_F(lat_rad, h_m, vel_ned_mps, C_nb, f_n_mps2, tau_g_s, tau_a_s, ta
 
 
 def process_noise_diag(noise, baro_bias_rw_m_sqrt_s: float, gnss_error_sigma_m: float = 0.0,
-                       gnss_error_tau_s: float = math.inf, fix_error_sigma_m: float = 0.0,
+                       gnss_error_tau_s: float = math.inf, fix_error_sigma_m: float | np.ndarray = 0.0,
                        fix_error_tau_s: float = math.inf) -> np.ndarray:
     """Diagonal of G Qc G^T (22,): continuous process-noise PSD mapped into the error states.
 
@@ -143,7 +143,8 @@ def process_noise_diag(noise, baro_bias_rw_m_sqrt_s: float, gnss_error_sigma_m: 
     q[IBA] = 2.0 * noise.accel_bias_sigma_mps2**2 / noise.accel_bias_tau_s + noise.accel_rrw_mps2_sqrt_s**2
     q[IBB] = baro_bias_rw_m_sqrt_s**2
     q[IGN] = 2.0 * gnss_error_sigma_m**2 / gnss_error_tau_s if math.isfinite(gnss_error_tau_s) else 0.0
-    q[IFX] = 2.0 * fix_error_sigma_m**2 / fix_error_tau_s if math.isfinite(fix_error_tau_s) else 0.0
+    # fix_error_sigma_m: one figure or (3,) per NED axis.
+    q[IFX] = 2.0 * np.square(fix_error_sigma_m) / fix_error_tau_s if math.isfinite(fix_error_tau_s) else 0.0
     return q
 
 

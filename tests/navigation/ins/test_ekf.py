@@ -239,3 +239,26 @@ def test_unknown_preset_and_key_are_input_errors():
         build("navigator", "ins_ekf", {"imu_preset": "nope"}, "nav", ctx=ctx)
     with pytest.raises(InputError, match="unknown key"):
         build("navigator", "ins_ekf", {"gnss_sigma": 1}, "nav", ctx=ctx)
+
+
+def test_shared_fix_error_per_axis():
+    """fix_error_sigma_down_m: fixes whose heights share little error pin the height down
+    where the horizontal, sharing 0.3 m, stays near that figure; None keeps one figure."""
+    from testbench.navigation.ins.error_model import IFX, IP
+
+    true_ned = geodesy.geodetic_to_ned(LAT0, LON0, H0, ORIGIN.lat_rad, ORIGIN.lon_rad, ORIGIN.alt_m)
+    sig = {}
+    for down in (0.05, None):
+        nav = _navigator(fix_error_sigma_m=0.3, fix_error_sigma_down_m=down, use_gnss=False)
+        nav.initialize(0.0, _estimate_from(LAT0, LON0, H0, np.zeros(3), np.array([1.0, 0, 0, 0])))
+        expect_down = 0.3 if down is None else down
+        np.testing.assert_allclose(np.sqrt(np.diag(nav.initial_covariance())[IFX]), [0.3, 0.3, expect_down])
+        w, f = static_imu(LAT0, H0, np.array([1.0, 0, 0, 0]))
+        for k in range(1, 401):
+            nav.predict(ImuSample(k * 0.05, w, f))
+            if k % 10 == 0:  # 2 Hz fixes claiming 0.5 m per axis
+                assert nav.correct(PositionFix(k * 0.05, true_ned, 0.25 * np.eye(3), 0.9)).accepted
+        sig[down] = np.sqrt(np.diag(nav.ekf.P)[IP])
+    assert sig[None][2] == pytest.approx(sig[None][0], rel=0.3)
+    assert sig[0.05][2] < 0.6 * sig[0.05][0], sig[0.05]
+    assert sig[0.05][0] > 0.25, sig[0.05]  # horizontal still carries the shared 0.3 m
