@@ -4,6 +4,10 @@
 `--vary key=DIST` forms (values are drawn from the batch's own "vary" stream, so the same
 batch gives the same draws):
   uniform(a, b) | normal(mu, sigma) | choice(a, b, c) | linspace(a, b)  (evenly over runs)
+`key+=DIST` adds the draw to the scenario's own value (a dispersion about it), and several
+comma-separated keys take one and the same draw, so that a geometry moves as a whole:
+  --vary "vehicles.uav0.initial.east_m,vehicles.uav0.mission.params.center.east_m+=uniform(-1000, 1000)"
+flies the same racetrack 0-1 km further east or west, start included.
 """
 
 from __future__ import annotations
@@ -27,14 +31,21 @@ class Vary:
     """One varied key: dotted scenario path and its distribution."""
 
     key: str
+    """One dotted path, or several separated by commas (all take the same draw)."""
     dist: str
     args: tuple[Any, ...]
+    offset: bool = False
+    """True: the draw is added to the scenario's value (`key+=DIST`)."""
 
     @classmethod
     def parse(cls, text: str) -> "Vary":
         if "=" not in text:
             raise InputError(f"--vary {text!r}: expected key.path=distribution(args), e.g. vehicles.uav0.initial.heading_deg=uniform(0, 360)")
         key, _, rhs = text.partition("=")
+        offset = key.endswith("+")
+        key = ",".join(k.strip() for k in (key[:-1] if offset else key).split(","))
+        if not all(key.split(",")):
+            raise InputError(f"--vary {text!r}: empty key path")
         m = _DIST.match(rhs)
         if not m:
             raise InputError(f"--vary {text!r}: unknown distribution {rhs.strip()!r}; expected uniform(a, b), normal(mu, sigma), choice(a, b, ...) or linspace(a, b)")
@@ -47,7 +58,14 @@ class Vary:
             raise InputError(f"--vary {text!r}: choice needs at least one value")
         if name in ("uniform", "normal", "linspace") and not all(isinstance(a, (int, float)) for a in args):
             raise InputError(f"--vary {text!r}: {name} takes numbers")
-        return cls(key.strip(), name, args)
+        if offset and not all(isinstance(a, (int, float)) for a in args):
+            raise InputError(f"--vary {text!r}: += adds numbers; choose among numbers")
+        return cls(key, name, args, offset)
+
+    def overrides(self, value: Any) -> tuple[str, ...]:
+        """The --set items that give one run this draw (one per key)."""
+        op = "+=" if self.offset else "="
+        return tuple(f"{k}{op}{json.dumps(value)}" for k in self.key.split(","))
 
     def draw(self, n: int, rng: np.random.Generator) -> list[Any]:
         """n values, one per run, in run order."""
@@ -103,11 +121,11 @@ class BatchPlan:
     def run_specs(self) -> list[RunSpec]:
         seqs = run_seed_sequences(self.seed, self.runs)
         rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence(self.seed, spawn_key=(0x7661_7279,))))  # "vary"
-        draws = {v.key: v.draw(self.runs, rng) for v in self.vary}
+        draws = [(v, v.draw(self.runs, rng)) for v in self.vary]
         specs = []
         for i, s in enumerate(seqs):
-            varied = {k: vals[i] for k, vals in draws.items()}
-            extra = tuple(f"{k}={json.dumps(val)}" for k, val in varied.items())
+            varied = {v.key + ("+" if v.offset else ""): vals[i] for v, vals in draws}
+            extra = tuple(o for v, vals in draws for o in v.overrides(vals[i]))
             specs.append(RunSpec(i, int(s.entropy), tuple(int(x) for x in s.spawn_key), self.overrides + extra, varied))
         return specs
 

@@ -92,11 +92,14 @@ def apply_override(data: dict[str, Any], item: str, where: str) -> None:
     Vehicles are addressed by id (`vehicles.uav0.initial.altitude_m=300`), sensors by name
     (`vehicles.uav0.sensors.imu.preset=tactical`); inside a component block a key other than
     type/params/name addresses its params (`vehicles.uav0.mission.altitude_m=300`). The value
-    is parsed as YAML (numbers, booleans, lists).
+    is parsed as YAML (numbers, booleans, lists). `key.path+=number` adds to the number the
+    scenario has there (a Monte Carlo dispersion about the scenario's own value).
     """
     if "=" not in item:
         raise InputError(f"--set {item!r}: expected key.path=value")
     key, _, raw = item.partition("=")
+    add = key.endswith("+")
+    key = key[:-1] if add else key
     parts = [s for s in key.strip().split(".") if s]
     if not parts:
         raise InputError(f"--set {item!r}: empty key path")
@@ -114,7 +117,7 @@ def apply_override(data: dict[str, Any], item: str, where: str) -> None:
                 names = [_item_name(x) for x in node]
                 raise InputError(f"--set {key}: no item {part!r} in {'.'.join(walked) or 'top level'} (have: {', '.join(map(str, names))})")
             if last:
-                node[idx] = value
+                node[idx] = _added(node[idx], value, key) if add else value
                 return
             node = node[idx]
         elif isinstance(node, dict):
@@ -123,7 +126,7 @@ def apply_override(data: dict[str, Any], item: str, where: str) -> None:
                 if not isinstance(node, dict):
                     raise InputError(f"--set {key}: params of {'.'.join(walked)} is not a mapping")
             if last:
-                node[part] = value
+                node[part] = _added(node.get(part), value, key) if add else value
                 return
             if part not in node or node[part] is None:
                 node[part] = {}
@@ -131,6 +134,18 @@ def apply_override(data: dict[str, Any], item: str, where: str) -> None:
         else:
             raise InputError(f"--set {key}: {'.'.join(walked)} is a value, not a mapping or list")
         walked.append(part)
+
+
+def _added(current: Any, value: Any, key: str) -> float:
+    """current + value for a `key+=value` override; both must be numbers."""
+    def number(x: Any) -> bool:
+        return isinstance(x, (int, float)) and not isinstance(x, bool)
+
+    if current is None:
+        raise InputError(f"--set {key}+=...: the scenario has no value at {key} to add to; use {key}=value")
+    if not number(current) or not number(value):
+        raise InputError(f"--set {key}+={value!r}: adds numbers only (the scenario has {current!r} there)")
+    return current + value
 
 
 def _item_name(item: Any) -> Any:

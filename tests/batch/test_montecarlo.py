@@ -77,3 +77,25 @@ def test_dask_loopback_cluster_matches_local_pool(local_batch, tmp_path):
     assert [r["status"] for r in dask.rows] == [r["status"] for r in result.rows]
     for a, b in zip(dask.rows, result.rows):
         assert _metrics(a) == _metrics(b)
+
+
+def test_vary_offset_moves_tied_keys_by_one_draw():
+    """`k1,k2+=DIST`: both keys move by the same draw about their own scenario values."""
+    from testbench.config.loader import load_scenario
+
+    v = Vary.parse("vehicles.uav0.initial.east_m, vehicles.uav0.mission.params.center.east_m+=uniform(-900, 900)")
+    assert v.offset and v.key.count(",") == 1
+    plan = BatchPlan(SCENARIO, 4, 3, SHORT, (v,))
+    base = load_scenario(SCENARIO)
+    e0 = base.scenario.vehicle("uav0").initial.east_m
+    c0 = base.data["vehicles"][0]["mission"]["params"]["center"]["east_m"]
+    shifts = []
+    for spec in plan.run_specs():
+        loaded = load_scenario(SCENARIO, list(spec.overrides))
+        d_init = loaded.scenario.vehicle("uav0").initial.east_m - e0
+        d_centre = loaded.data["vehicles"][0]["mission"]["params"]["center"]["east_m"] - c0
+        assert d_init == pytest.approx(d_centre) and -900 <= d_init <= 900
+        shifts.append(d_init)
+    assert len(set(shifts)) == 4, "each run draws its own shift"
+    with pytest.raises(InputError, match="adds numbers"):
+        Vary.parse("vehicles.uav0.aircraft+=choice(a, b)")

@@ -78,3 +78,19 @@ def test_yaml_anchors_in_x_keys_are_shared_then_unshared(tmp_path):
     loaded = load_scenario(p, ["vehicles.uav0.sensors.ideal_state.rate_hz=20"])
     assert loaded.scenario.vehicles[0].sensors[0].params["rate_hz"] == 20
     assert "x-sensors" not in loaded.data
+
+
+def test_additive_override_offsets_the_scenario_value():
+    base = load_scenario(RACETRACK).scenario.vehicle("uav0").initial.east_m
+    loaded = load_scenario(RACETRACK, ["vehicles.uav0.initial.east_m+=250.5"])
+    assert loaded.scenario.vehicle("uav0").initial.east_m == base + 250.5
+
+
+@pytest.mark.parametrize("item, message", [
+    ("vehicles.uav0.initial.pitch_deg+=3", "no value at vehicles.uav0.initial.pitch_deg"),
+    ("vehicles.uav0.aircraft+=1", "adds numbers only"),
+    ("vehicles.uav0.initial.east_m+=abc", "adds numbers only"),
+])
+def test_additive_override_needs_numbers_on_both_sides(item, message):
+    with pytest.raises(InputError, match=message):
+        load_scenario(RACETRACK, [item])
