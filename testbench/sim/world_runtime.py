@@ -107,6 +107,10 @@ class RunWorld:
         cached = self._imagery_windows.get(level)
         if cached is not None and _contains(cached, n0, n1, e0, e1):
             return cached
+        # Forget the window this read replaces first: two windows of up to ~200 MB each need
+        # not coexist while the new one is reprojected.
+        cached = None
+        self._imagery_windows.pop(level, None)
         fp = src.footprint
         if max(fp.north_max_m - fp.north_min_m, fp.east_max_m - fp.east_min_m) / gsd <= self._WHOLE_MAP_MAX_PX:
             n0, n1, e0, e1 = fp.north_min_m, fp.north_max_m, fp.east_min_m, fp.east_max_m

@@ -91,19 +91,65 @@ class LocalFrame:
         return self.lonlat_deg_to_ne(lon, lat)
 
 
+class GridInterpolator:
+    """Bilinear upsampling of values given at every `step`-th pixel (node k at index k*step),
+    served in row ranges so that a caller never needs the whole (n_rows, n_cols) grid at once.
+
+    coarse: (nr, nc) with nr >= ceil((n_rows-1)/step)+1 and nc likewise (for instance source
+    pixel coordinates at the nodes). rows(start, stop) returns rows [start, stop) of the
+    (n_rows, n_cols) float32 upsampled grid, bit-identical to the same rows of interp_grid:
+    every output row depends only on its own two coarse rows.
+    """
+
+    def __init__(self, coarse: np.ndarray, step: int, n_rows: int, n_cols: int):
+        self.step = int(step)
+        self.n_rows = int(n_rows)
+        c = np.arange(n_cols) / step
+        c0 = np.minimum(c.astype(np.int64), coarse.shape[1] - 2)
+        fc = c - c0
+        # Along columns in float64 on the few coarse rows, then rows in float32 (values are
+        # pixel coordinates < 1e5: float32 keeps them to ~0.004 px). (nr, n_cols): small.
+        # C order: indexing columns leaves the product column-major, and rows() reads rows.
+        a = coarse[:, c0] * (1.0 - fc) + coarse[:, c0 + 1] * fc
+        self._a = a.astype(np.float32, order="C")
+        self._upper: np.ndarray | None = None  # scratch rows for rows(), kept across calls
+
+    def rows(self, start: int, stop: int, out: np.ndarray | None = None) -> np.ndarray:
+        """Rows [start, stop) of the upsampled grid: (stop - start, n_cols) float32.
+
+        out: optional (stop - start, n_cols) float32 array to fill and return (a caller
+        walking strips reuses one buffer instead of faulting in fresh pages per strip).
+        """
+        if not 0 <= start <= stop <= self.n_rows:
+            raise ValueError(f"rows [{start}, {stop}) outside the grid's {self.n_rows} rows")
+        a = self._a
+        r = np.arange(start, stop) / self.step
+        r0 = np.minimum(r.astype(np.int64), a.shape[0] - 2)
+        fr = (r - r0)[:, None].astype(np.float32)
+        w0 = 1.0 - fr
+        shape = (stop - start, a.shape[1])
+        if out is None:
+            out = np.empty(shape, np.float32)
+        if self._upper is None or self._upper.shape[0] < shape[0]:
+            self._upper = np.empty(shape, np.float32)
+        upper = self._upper[:shape[0]]
+        # out = a[r0] * (1 - fr) + a[r0 + 1] * fr: the same float32 products and sum, but
+        # broadcast from the two coarse rows of each run of rows sharing r0 (at most `step`
+        # long) rather than gathered into full-size copies first.
+        cuts = np.flatnonzero(np.diff(r0)) + 1
+        for i0, i1 in zip(np.r_[0, cuts], np.r_[cuts, len(r0)]) if len(r0) else ():
+            k = r0[i0]
+            np.multiply(a[k], w0[i0:i1], out=out[i0:i1])
+            np.multiply(a[k + 1], fr[i0:i1], out=upper[i0:i1])
+        out += upper
+        return out
+
+
 def interp_grid(coarse: np.ndarray, step: int, n_rows: int, n_cols: int) -> np.ndarray:
     """Bilinear upsampling of values given at every `step`-th pixel (node k at index k*step).
 
     coarse: (nr, nc) with nr >= ceil((n_rows-1)/step)+1 and nc likewise; returns (n_rows,
     n_cols) float32. Exact float interpolation (cv2.remap would quantise weights to 1/32).
+    For large grids use GridInterpolator.rows on row strips (same values, bounded memory).
     """
-    r = np.arange(n_rows) / step
-    c = np.arange(n_cols) / step
-    r0 = np.minimum(r.astype(np.int64), coarse.shape[0] - 2)
-    c0 = np.minimum(c.astype(np.int64), coarse.shape[1] - 2)
-    fr = (r - r0)[:, None].astype(np.float32)
-    fc = c - c0
-    # Along columns in float64 on the few coarse rows, then rows in float32 (values are pixel
-    # coordinates < 1e5: float32 keeps them to ~0.004 px).
-    a = (coarse[:, c0] * (1.0 - fc) + coarse[:, c0 + 1] * fc).astype(np.float32)
-    return a[r0] * (1.0 - fr) + a[r0 + 1] * fr
+    return GridInterpolator(coarse, step, n_rows, n_cols).rows(0, n_rows)

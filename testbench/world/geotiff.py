@@ -13,6 +13,7 @@ coordinates with centres at integers, as the LocalRaster grid does.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 from dataclasses import dataclass
@@ -20,18 +21,27 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 import rasterio
-from rasterio.enums import ColorInterp, Resampling
+from rasterio.enums import ColorInterp, MaskFlags, Resampling
 from rasterio.windows import Window
 
 from testbench.core.errors import InputError
 from testbench.core.interfaces import GeodeticOrigin
-from testbench.world.georef import LocalFrame, interp_grid
+from testbench.world.georef import GridInterpolator, LocalFrame
 from testbench.world.raster import LocalRaster, bilinear_at_rowcol
 
 log = logging.getLogger(__name__)
 
 _NODE_STEP = 32  # output pixels between exactly transformed grid nodes
 _MAX_CV_SIZE = 32000  # cv2.remap needs sizes below SHRT_MAX
+# Output pixels reprojected at once: the float32 coordinate maps and remap temporaries of a
+# strip stay at a few tens of MB whatever the window (a 7000 x 7000 window at once needed
+# ~1 GB of them), and they stay in the CPU caches.
+_STRIP_PX = 1 << 20
+# GDAL's block cache while reading windows (bytes). Its default (5 % of RAM) only keeps a
+# second copy of the blocks of the last windows: every window read here is read once and kept
+# by the caller (world, map cache), so a few rows of 256 px tiles are all GDAL needs.
+# An explicit GDAL_CACHEMAX in the environment wins.
+_GDAL_CACHE_BYTES = 64 << 20
 
 
 @dataclass(frozen=True)
@@ -121,11 +131,26 @@ class GeoRasterReader:
         return np.asarray(col) - 0.5, np.asarray(row) - 0.5
 
     # -- reading --------------------------------------------------------------------------
+    def _reading(self):
+        """Context for window reads: GDAL's block cache bounded to _GDAL_CACHE_BYTES."""
+        if "GDAL_CACHEMAX" in os.environ:
+            return contextlib.nullcontext()
+        return rasterio.Env(GDAL_CACHEMAX=_GDAL_CACHE_BYTES)
+
+    def _all_valid(self) -> bool:
+        """True when GDAL reports every band fully valid (no nodata, mask or alpha band):
+        dataset_mask would then be 255 everywhere, so it need not be read."""
+        return (ColorInterp.alpha not in self.ds.colorinterp
+                and all(MaskFlags.all_valid in flags for flags in self.ds.mask_flag_enums))
+
     def read_grid(self, north0_m: float, east0_m: float, gsd_m: float, height: int, width: int):
         """Reproject onto the local grid with NW corner (north0_m, east0_m), `gsd_m` m/px.
 
         Returns (data, valid): data (height, width, len(bands)) in the source dtype, valid
         (height, width) bool (False off-map and at nodata; data 0 there).
+
+        Memory: the source window (decimated to about gsd_m), the outputs, and per strip of
+        _STRIP_PX output pixels the float32 source coordinates and remap temporaries.
         """
         if height > _MAX_CV_SIZE or width > _MAX_CV_SIZE:
             raise InputError(f"{self.what} '{self.path}': requested window {height}x{width} px is "
@@ -150,39 +175,78 @@ class GeoRasterReader:
         c_lo, r_lo = max(c_lo, 0), max(r_lo, 0)
         c_hi, r_hi = min(c_hi, self.ds.width), min(r_hi, self.ds.height)
         nb = len(self.bands)
+        dtype = self.ds.dtypes[self.bands[0] - 1]
         if c_hi - c_lo < 2 or r_hi - r_lo < 2:  # entirely off the map
-            data = np.zeros((height, width, nb), dtype=self.ds.dtypes[self.bands[0] - 1])
-            return data, np.zeros((height, width), bool)
+            return np.zeros((height, width, nb), dtype=dtype), np.zeros((height, width), bool)
         win = Window(c_lo, r_lo, c_hi - c_lo, r_hi - r_lo)
         out_h = max(2, -(-win.height // factor))
         out_w = max(2, -(-win.width // factor))
-        if (out_h, out_w) == (win.height, win.width):
-            src = self.ds.read(self.bands, window=win)
-            mask = self.ds.dataset_mask(window=win)
-        else:
-            src = self.ds.read(self.bands, window=win, out_shape=(nb, out_h, out_w),
-                               resampling=self.resampling)
-            mask = self.ds.dataset_mask(window=win, out_shape=(out_h, out_w),
-                                        resampling=Resampling.nearest)
         if max(out_h, out_w) > _MAX_CV_SIZE:
             raise InputError(f"{self.what} '{self.path}': window too large for one read; "
                              "use a coarser gsd_m or a smaller window")
+        src, mask = self._read_window(win, out_h, out_w, dtype)
+        if mask is not None:
+            bad = mask == 0
+            if bad.any() and not bad.all():
+                # Fill nodata with the window mean so that it cannot leak into valid pixels
+                # through bilinear weights (-32767 times a tiny weight is still a cliff).
+                _fill(src, bad)
+            del bad
         sx, sy = win.width / out_w, win.height / out_h
         # Source centre coordinates -> coordinates in the (decimated) window array.
-        map_c = interp_grid((col_n - c_lo + 0.5) / sx - 0.5, step, height, width)
-        map_r = interp_grid((row_n - r_lo + 0.5) / sy - 0.5, step, height, width)
-        src = np.ascontiguousarray(np.moveaxis(src, 0, -1))
-        bad = mask == 0
-        if bad.any() and not bad.all():
-            # Fill nodata with the window mean so that it cannot leak into valid pixels
-            # through bilinear weights (-32767 times a tiny weight is still a cliff).
-            src[bad] = src[~bad].mean(axis=0).astype(src.dtype)
-        out = _remap(src, map_c, map_r)
-        m = cv2.remap(mask, map_c, map_r, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
-                      borderValue=0)
-        valid = m >= 250  # every neighbour with weight >= 1/32 valid
-        out[~valid] = 0
-        return out.reshape(height, width, nb), valid
+        grid_c = GridInterpolator((col_n - c_lo + 0.5) / sx - 0.5, step, height, width)
+        grid_r = GridInterpolator((row_n - r_lo + 0.5) / sy - 0.5, step, height, width)
+        out = np.empty((height, width, nb), dtype=dtype)
+        valid = np.empty((height, width), bool)
+        # Strip by strip: cv2.remap computes every output pixel from its own map values only,
+        # so strips give exactly the pixels of one whole-window remap.
+        rows = max(1, _STRIP_PX // width)
+        buf_c = np.empty((min(rows, height), width), np.float32)
+        buf_r = np.empty_like(buf_c)
+        for y0 in range(0, height, rows):
+            y1 = min(height, y0 + rows)
+            map_c = grid_c.rows(y0, y1, out=buf_c[:y1 - y0])
+            map_r = grid_r.rows(y0, y1, out=buf_r[:y1 - y0])
+            o = out[y0:y1]
+            _remap(src, map_c, map_r, o)
+            v = valid[y0:y1]
+            if mask is None:
+                v[...] = _inside(out_h, out_w, map_c, map_r)
+            else:
+                m = cv2.remap(mask, map_c, map_r, cv2.INTER_LINEAR,
+                              borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+                np.greater_equal(m, 250, out=v)  # every neighbour with weight >= 1/32 valid
+            if not v.all():
+                o[~v] = 0
+        return out, valid
+
+    def _read_window(self, win: Window, out_h: int, out_w: int, dtype):
+        """Source window read at (out_h, out_w) px (decimated with self.resampling when smaller).
+
+        Returns (src, mask): src (out_h, out_w, nb) C-contiguous (cv2 layout, read in place:
+        no band-first copy) or, for more than 4 bands, (nb, out_h, out_w) (one cv2 plane per
+        band); mask (out_h, out_w) uint8 dataset mask, or None when every pixel is valid.
+        """
+        nb = len(self.bands)
+        decimate = (out_h, out_w) != (win.height, win.width)
+        if nb <= 4:
+            src = np.empty((out_h, out_w, nb), dtype=dtype)
+            dst = np.moveaxis(src, -1, 0)  # a band-first view GDAL fills through its strides
+        else:
+            src = dst = np.empty((nb, out_h, out_w), dtype=dtype)
+        with self._reading():
+            if decimate:
+                self.ds.read(self.bands, window=win, out=dst, resampling=self.resampling)
+            else:
+                self.ds.read(self.bands, window=win, out=dst)
+            if self._all_valid():
+                return src, None
+            if decimate:
+                mask = self.ds.dataset_mask(window=win, out_shape=(out_h, out_w),
+                                            resampling=Resampling.nearest)
+            else:
+                mask = self.ds.dataset_mask(window=win)
+        return src, mask
 
     def sample_points(self, north_m, east_m):
         """Bilinear source values at local points, native resolution, exact float weights.
@@ -204,8 +268,12 @@ class GeoRasterReader:
         c_hi = min(int(np.floor(col[fin].max())) + 2, self.ds.width)
         r_hi = min(int(np.floor(row[fin].max())) + 2, self.ds.height)
         win = Window(c_lo, r_lo, c_hi - c_lo, r_hi - r_lo)
-        src = np.moveaxis(self.ds.read(self.bands, window=win), 0, -1)
-        mask = self.ds.dataset_mask(window=win) > 0
+        with self._reading():
+            src = np.moveaxis(self.ds.read(self.bands, window=win), 0, -1)
+            if self._all_valid():
+                mask = np.ones(src.shape[:2], bool)
+            else:
+                mask = self.ds.dataset_mask(window=win) > 0
         vals, valid = bilinear_at_rowcol(src, mask, np.where(fin, row - r_lo, -1.0),
                                          np.where(fin, col - c_lo, -1.0))
         return vals, valid
@@ -232,14 +300,62 @@ def _apply(t, a, b):
     return t.a * a + t.b * b + t.c, t.d * a + t.e * b + t.f
 
 
-def _remap(src: np.ndarray, map_c: np.ndarray, map_r: np.ndarray) -> np.ndarray:
-    """cv2.remap (bilinear, constant 0 border) for any band count (cv2 takes <= 4 channels)."""
+def _remap(src: np.ndarray, map_c: np.ndarray, map_r: np.ndarray, dst: np.ndarray) -> None:
+    """cv2.remap (bilinear, constant 0 border) of a _read_window source into dst (h, w, nb).
+
+    src: (H, W, nb) for nb <= 4 (one cv2 call), else (nb, H, W) planes (cv2 takes <= 4
+    channels); map_c, map_r (h, w) float32 source column, row; dst: C-contiguous.
+    """
     kw = dict(interpolation=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-    if src.shape[2] <= 4:
-        out = cv2.remap(src, map_c, map_r, **kw)
-        return out.reshape(map_c.shape + (src.shape[2],))
-    return np.stack([cv2.remap(np.ascontiguousarray(src[..., i]), map_c, map_r, **kw)
-                     for i in range(src.shape[2])], axis=-1)
+    if src.ndim == 3 and src.shape[2] <= 4:
+        # cv2 writes into dst when its shape and type fit (no fresh (h, w, nb) array per strip)
+        r = cv2.remap(src, map_c, map_r, dst=dst, **kw)
+        if not np.shares_memory(r, dst):
+            dst[...] = r.reshape(dst.shape)
+        return
+    for i, plane in enumerate(src):
+        dst[..., i] = cv2.remap(plane, map_c, map_r, **kw)
+
+
+def _fill(src: np.ndarray, bad: np.ndarray) -> None:
+    """Set the `bad` pixels of a _read_window source to the mean of the others, per band
+    (cast to the source dtype), in place. bad: (H, W) bool, neither all False nor all True."""
+    if src.ndim == 3 and src.shape[2] <= 4:
+        src[bad] = src[~bad].mean(axis=0).astype(src.dtype)
+    else:
+        fill = np.moveaxis(src, 0, -1)[~bad].mean(axis=0).astype(src.dtype)
+        for plane, value in zip(src, fill):
+            plane[bad] = value
+
+
+def _inside(h: int, w: int, map_c: np.ndarray, map_r: np.ndarray) -> np.ndarray:
+    """Validity of the pixels remapped from an all-valid (h, w) source window: exactly
+    `cv2.remap(mask, map_c, map_r) >= 250` for a 255-filled mask (constant-0 border), without
+    an (h, w) mask array.
+
+    The mask is remapped from the crop of the window that the strip's maps reach: cv2 turns
+    a coordinate x into the neighbours floor(x') and floor(x') + 1 of x' = round(32 x) / 32, so
+    columns floor(min) .. floor(max) + 2 (clipped to the window) hold every neighbour inside
+    the window; the others see the constant-0 border in both cases. Shifting float32
+    coordinates by a whole c0 <= their minimum (c0 >= 0, |x| < 2^24) is exact, so cv2 sees the
+    same fractions and weights. map_c, map_r: (n, m) float32 -> (n, m) bool.
+    """
+    c_min, c_max = float(map_c.min()), float(map_c.max())
+    r_min, r_max = float(map_r.min()), float(map_r.max())
+    if c_min >= 0 and r_min >= 0 and c_max <= w - 2 and r_max <= h - 2:
+        # Both neighbours of every pixel lie in the window (floor(x') <= w - 2): all weights
+        # fall on 255s, which cv2's weights (summing to exactly 1 in fixed point) keep at 255.
+        return np.ones(map_c.shape, bool)
+    c0 = min(max(int(np.floor(c_min)), 0), w)
+    r0 = min(max(int(np.floor(r_min)), 0), h)
+    c1 = min(max(int(np.floor(c_max)) + 3, c0), w)
+    r1 = min(max(int(np.floor(r_max)) + 3, r0), h)
+    if c1 == c0 or r1 == r0:  # the strip lies entirely off the window
+        return np.zeros(map_c.shape, bool)
+    ones = np.full((r1 - r0, c1 - c0), 255, np.uint8)
+    m = cv2.remap(ones, map_c - np.float32(c0), map_r - np.float32(r0), cv2.INTER_LINEAR,
+                  borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+    return m >= 250
 
 
 def _rgb_bands(ds) -> tuple[list[int], bool]:
@@ -309,6 +425,7 @@ class MapSource:
         key = (north_min_m, north_max_m, east_min_m, east_max_m, gsd_m)
         if self._cache is not None and self._cache[0] == key:
             return self._cache[1]
+        self._cache = None  # the window this read replaces need not coexist with the new one
         h, w = self._reader.grid_shape(*key)
         data, valid = self._reader.read_grid(north_max_m, east_min_m, gsd_m, h, w)
         r = LocalRaster(self._to_rgb8(data), valid, float(north_max_m), float(east_min_m),

@@ -44,17 +44,23 @@ class MapWindowCache:
         """LocalRaster (grey (H, W) uint8 data, valid) covering the bounds at gsd_m."""
         c = self._cache.get(gsd_m)
         if c is None or not _covers(c, north_min, north_max, east_min, east_max):
+            # Drop the window this read replaces, and its feature images, before reading: the
+            # old and new windows (and float32 features) need not coexist at the peak. (Same
+            # eviction as ever: all windows go when more than 4, this one included, were held.)
+            c = None
+            evict_all = len(self._cache) > 4
+            self._cache.pop(gsd_m, None)
+            for k in [k for k in self._features if k[0] == gsd_m]:
+                del self._features[k]
+            if evict_all:
+                self._cache.clear()
+                self._features.clear()
             m = self.grow * max(north_max - north_min, east_max - east_min)
             if max(north_max - north_min, east_max - east_min) + 2 * m > self.max_side_px * gsd_m:
                 m = 0.0
             r = self.source.read_local(north_min - m, north_max + m, east_min - m, east_max + m, gsd_m)
             c = LocalRaster(to_grey_u8(r.data), np.asarray(r.valid, bool), r.north0_m, r.east0_m, r.gsd_m)
-            if len(self._cache) > 4:
-                self._cache.clear()
-                self._features.clear()
             self._cache[gsd_m] = c
-            for k in [k for k in self._features if k[0] == gsd_m]:
-                del self._features[k]
         g = c.gsd_m
         r0 = max(0, int(math.floor((c.north0_m - north_max) / g + 1e-9)))
         c0 = max(0, int(math.floor((east_min - c.east0_m) / g + 1e-9)))
