@@ -103,7 +103,14 @@ class RunWorld:
         native = float(getattr(src, "native_gsd_m", 1.0))
         level = max(0, int(np.floor(np.log2(max(gsd_m, native) / native) + 1e-9)))
         gsd = native * 2.0**level
-        n0, n1, e0, e1 = bounds_ne_m
+        fp = src.footprint
+        # Off the map there is nothing to read: a banked or oblique camera's footprint reaches
+        # kilometres past the map (to its far clip), and reading all of it as no-data took
+        # 16856 x 18571 px windows (GBs) on a 10 km map. The renderer treats what lies
+        # outside the window as no-data too, so a window clipped to the map (plus a few
+        # pixels of no-data for the bilinear taps) renders the same view.
+        pad = 4.0 * gsd
+        n0, n1, e0, e1 = _clamp_to_footprint(bounds_ne_m, fp, pad, gsd)
         cached = self._imagery_windows.get(level)
         if cached is not None and _contains(cached, n0, n1, e0, e1):
             return cached
@@ -111,12 +118,11 @@ class RunWorld:
         # not coexist while the new one is reprojected.
         cached = None
         self._imagery_windows.pop(level, None)
-        fp = src.footprint
         if max(fp.north_max_m - fp.north_min_m, fp.east_max_m - fp.east_min_m) / gsd <= self._WHOLE_MAP_MAX_PX:
             n0, n1, e0, e1 = fp.north_min_m, fp.north_max_m, fp.east_min_m, fp.east_max_m
         else:
             m = self._MARGIN * max(n1 - n0, e1 - e0)
-            n0, n1, e0, e1 = n0 - m, n1 + m, e0 - m, e1 + m
+            n0, n1, e0, e1 = _clamp_to_footprint((n0 - m, n1 + m, e0 - m, e1 + m), fp, pad, gsd)
         raster = src.read_local(n0, n1, e0, e1, gsd)
         self._imagery_windows[level] = raster
         return raster
@@ -165,6 +171,24 @@ def _clip_to_footprint(bounds_ne_m, fp, pad_m: float):
     ce0, ce1 = max(e0, fp.east_min_m - pad_m), min(e1, fp.east_max_m + pad_m)
     if cn0 < cn1 and ce0 < ce1:
         return cn0, cn1, ce0, ce1
+    return n0, n1, e0, e1
+
+
+def _clamp_to_footprint(bounds_ne_m, fp, pad_m: float, min_size_m: float):
+    """(n0, n1, e0, e1) with each bound clamped into a raster footprint grown by pad_m, at
+    least min_size_m across (a request wholly off the map becomes a thin strip at its edge:
+    no data, as the request, but no large read); unchanged without a footprint."""
+    n0, n1, e0, e1 = bounds_ne_m
+    if fp is None:
+        return n0, n1, e0, e1
+    lo_n, hi_n = fp.north_min_m - pad_m, fp.north_max_m + pad_m
+    lo_e, hi_e = fp.east_min_m - pad_m, fp.east_max_m + pad_m
+    n0, n1 = min(max(n0, lo_n), hi_n), min(max(n1, lo_n), hi_n)
+    e0, e1 = min(max(e0, lo_e), hi_e), min(max(e1, lo_e), hi_e)
+    if n1 - n0 < min_size_m:
+        n0, n1 = (n0, n0 + min_size_m) if n0 < hi_n else (n1 - min_size_m, n1)
+    if e1 - e0 < min_size_m:
+        e0, e1 = (e0, e0 + min_size_m) if e0 < hi_e else (e1 - min_size_m, e1)
     return n0, n1, e0, e1
 
 

@@ -157,3 +157,25 @@ def test_elevation_window_is_clipped_to_the_dem(tmp_path, origin):
     first = run_world.elevation_for((-20_000.0, 20_000.0, -20_000.0, 20_000.0))
     assert first.shape[0] <= 500 / 4 + 4 and first.shape[1] <= 500 / 4 + 4
     assert run_world.elevation_for((-15_000.0, 30_000.0, -1_000.0, 1_000.0)) is first
+
+
+def test_imagery_window_is_clipped_to_the_map(tmp_path, origin, monkeypatch):
+    """A banked camera's footprint reaches kilometres past the map: the window read for it
+    stops a few pixels past the map's edge (a run on a 10 km map read 16856 x 18571 px
+    windows before), later requests inside are served from it, and a request wholly off
+    the map reads only a thin strip of no-data."""
+    from testbench.config.schema import Origin, World
+    from testbench.sim.world_runtime import RunWorld
+
+    monkeypatch.setattr(RunWorld, "_WHOLE_MAP_MAX_PX", 50)  # take the windowed path on a small map
+    spec = "procedural:farmland?seed=2&size_km=0.5&gsd_m=4"
+    world = World(origin=Origin(lat_deg=float(np.degrees(origin.lat_rad)), lon_deg=float(np.degrees(origin.lon_rad)),
+                                alt_m=origin.alt_m), imagery=spec)
+    run_world = RunWorld(world, origin, cache_dir=tmp_path)
+    first = run_world.imagery_for((-150.0, 20_000.0, -100.0, 100.0), 4.0)
+    assert first.shape[0] <= 500 / 4 + 2 * 4 + 2 and first.shape[1] <= 500 / 4 + 2 * 4 + 2, first.shape
+    assert first.valid.mean() > 0.8
+    assert run_world.imagery_for((-100.0, 30_000.0, -50.0, 50.0), 4.0) is first
+    assert run_world.imagery_for((5_000.0, 9_000.0, 5_000.0, 9_000.0), 4.0) is first  # its edge strip is in it
+    off = RunWorld(world, origin, cache_dir=tmp_path).imagery_for((5_000.0, 9_000.0, 5_000.0, 9_000.0), 4.0)
+    assert off.shape[0] * off.shape[1] <= 4 and not off.valid.any()
