@@ -40,7 +40,14 @@ def robust_image(img: np.ndarray, valid: np.ndarray | None, kind: str = "gradmag
             x = cv2.GaussianBlur(x, (0, 0), sigma_px)
         gx = cv2.Sobel(x, cv2.CV_32F, 1, 0, ksize=3)
         gy = cv2.Sobel(x, cv2.CV_32F, 0, 1, ksize=3)
-        mag = cv2.magnitude(gx, gy)
+        # Not cv2.magnitude: through OpenCV's IPP HAL (ippsMagnitude_32f) its last bit depends
+        # on the address of the output buffer (mod 32 bytes: which elements go through the
+        # vector loop and which through the head and tail code, which round differently, follows
+        # it), and numpy puts that buffer wherever the heap has room, so the same frame gave
+        # features, hence ISMN fixes, that differed from run to run. A square, a sum and a
+        # square root are each correctly rounded whatever code path computes them.
+        # In place: gx and gy are this function's own arrays (no extra image-sized buffer).
+        mag = np.sqrt(np.add(np.square(gx, out=gx), np.square(gy, out=gy), out=gx), out=gx)
         local = cv2.boxFilter(mag, -1, (norm_px, norm_px))
         f = cv2.sqrt(mag / (local + np.float32(1e-3 + 0.1 * float(local.mean()))))
     elif kind == "clahe":
