@@ -26,15 +26,18 @@ def robust_image(img: np.ndarray, valid: np.ndarray | None, kind: str = "gradmag
 
     sigma_px: Gaussian pre-smoothing; norm_px: box size of the local normalisation.
     """
-    x = img.astype(np.float32) * (np.float32(1 / 255.0) if img.dtype == np.uint8 else np.float32(1.0))
-    if valid is None:
-        valid = np.ones(x.shape, bool)
-    v8 = valid.astype(np.uint8)
-    if not valid.all():
+    # Called ~26 times per frame on tile crops: the all-valid case (most tiles) skips the mask
+    # work, and the steps below run in place, without changing a bit of the result.
+    x = img.astype(np.float32)
+    if img.dtype == np.uint8:
+        x *= np.float32(1 / 255.0)
+    all_valid = valid is None or bool(valid.all())
+    v8 = None
+    if not all_valid:
         # Fill invalid with the valid mean so the border step does not dominate the smoothing.
         mean = float(x[valid].mean()) if valid.any() else 0.0
         x = np.where(valid, x, np.float32(mean))
-        v8 = cv2.erode(v8, np.ones((5, 5), np.uint8))
+        v8 = cv2.erode(valid.astype(np.uint8), np.ones((5, 5), np.uint8))
     if kind == "gradmag":
         if sigma_px > 0:
             x = cv2.GaussianBlur(x, (0, 0), sigma_px)
@@ -49,7 +52,8 @@ def robust_image(img: np.ndarray, valid: np.ndarray | None, kind: str = "gradmag
         # In place: gx and gy are this function's own arrays (no extra image-sized buffer).
         mag = np.sqrt(np.add(np.square(gx, out=gx), np.square(gy, out=gy), out=gx), out=gx)
         local = cv2.boxFilter(mag, -1, (norm_px, norm_px))
-        f = cv2.sqrt(mag / (local + np.float32(1e-3 + 0.1 * float(local.mean()))))
+        local += np.float32(1e-3 + 0.1 * float(local.mean()))
+        f = cv2.sqrt(np.divide(mag, local, out=mag))
     elif kind == "clahe":
         u8 = np.clip(x * 255, 0, 255).astype(np.uint8)
         clahe = cv2.createCLAHE(clipLimit=2.0, tileGridSize=(8, 8))
@@ -58,5 +62,7 @@ def robust_image(img: np.ndarray, valid: np.ndarray | None, kind: str = "gradmag
             f = cv2.GaussianBlur(f, (0, 0), sigma_px)
     else:
         raise ValueError(f"unknown feature kind {kind!r}; expected one of {FEATURES}")
+    if all_valid:
+        return f, np.ones(f.shape, bool)
     f = f * v8.astype(np.float32)
     return f, v8.astype(bool)
