@@ -121,7 +121,12 @@ class RunWorld:
         if max(fp.north_max_m - fp.north_min_m, fp.east_max_m - fp.east_min_m) / gsd <= self._WHOLE_MAP_MAX_PX:
             n0, n1, e0, e1 = fp.north_min_m, fp.north_max_m, fp.east_min_m, fp.east_max_m
         else:
-            m = self._MARGIN * max(n1 - n0, e1 - e0)
+            # The margin lets the next frames be served from this window, but the window stays
+            # within _WHOLE_MAP_MAX_PX a side unless the footprint itself is larger: with the
+            # full margin a banked camera's km-wide footprint took a whole 10 km map at 1 m
+            # (100 Mpx, ~0.9 GB with its RGBA pyramid) next to the windows of coarser levels.
+            ext = max(n1 - n0, e1 - e0)
+            m = max(0.0, min(self._MARGIN * ext, 0.5 * (self._WHOLE_MAP_MAX_PX * gsd - ext)))
             n0, n1, e0, e1 = _clamp_to_footprint((n0 - m, n1 + m, e0 - m, e1 + m), fp, pad, gsd)
         raster = src.read_local(n0, n1, e0, e1, gsd)
         self._imagery_windows[level] = raster
