@@ -135,19 +135,20 @@ class RunWorld:
     def elevation_for(self, bounds_ne_m):
         """LocalRaster of terrain heights over bounds, or None on flat ground.
 
-        Bounds are clipped to the DEM (plus a cell): a horizontal camera's footprint reaches its
-        far clip, kilometres past a small DEM, and the ray caster extends the DEM's edges anyway.
+        Bounds are clamped to the DEM (plus a cell, at least 4 cells across): a horizontal
+        camera's footprint reaches its far clip, kilometres past a small DEM, and the ray caster
+        extends the DEM's edges anyway.
         """
         elev = self.elevation()
         if elev is None or not hasattr(elev, "read_local") or type(elev).__name__ == "FlatElevation":
             return None
         gsd = float(getattr(elev, "native_gsd_m", 10.0) or 10.0)
-        n0, n1, e0, e1 = _clip_to_footprint(bounds_ne_m, getattr(elev, "footprint", None), gsd)
+        n0, n1, e0, e1 = _clamp_to_footprint(bounds_ne_m, getattr(elev, "footprint", None), gsd, 4.0 * gsd)
         cached = self._elevation_window
         if cached is not None and _contains(cached, n0, n1, e0, e1):
             return cached
         m = self._MARGIN * max(n1 - n0, e1 - e0)
-        n0, n1, e0, e1 = _clip_to_footprint((n0 - m, n1 + m, e0 - m, e1 + m), getattr(elev, "footprint", None), gsd)
+        n0, n1, e0, e1 = _clamp_to_footprint((n0 - m, n1 + m, e0 - m, e1 + m), getattr(elev, "footprint", None), gsd, 4.0 * gsd)
         self._elevation_window = elev.read_local(n0, n1, e0, e1, gsd)
         return self._elevation_window
 
@@ -164,19 +165,6 @@ class RunWorld:
         if elev is None:
             return np.zeros(np.broadcast(np.asarray(north_m), np.asarray(east_m)).shape)
         return elev.height_m(np.asarray(north_m, float), np.asarray(east_m, float))
-
-
-def _clip_to_footprint(bounds_ne_m, fp, pad_m: float):
-    """(n0, n1, e0, e1) intersected with a raster footprint grown by pad_m; unchanged when there
-    is no footprint or the intersection is empty."""
-    n0, n1, e0, e1 = bounds_ne_m
-    if fp is None:
-        return n0, n1, e0, e1
-    cn0, cn1 = max(n0, fp.north_min_m - pad_m), min(n1, fp.north_max_m + pad_m)
-    ce0, ce1 = max(e0, fp.east_min_m - pad_m), min(e1, fp.east_max_m + pad_m)
-    if cn0 < cn1 and ce0 < ce1:
-        return cn0, cn1, ce0, ce1
-    return n0, n1, e0, e1
 
 
 def _clamp_to_footprint(bounds_ne_m, fp, pad_m: float, min_size_m: float):
