@@ -105,7 +105,7 @@ def _locate(args) -> int:
     from testbench.core.registry import build
     from testbench.core.rotations import euler_to_quat
     from testbench.navigation.ismn import IsmnParams, IsmnPipeline
-    from testbench.world.geotiff import MapSource
+    from testbench.world.imagery import MapSource
 
     t0 = time.perf_counter()
     roll, pitch, yaw = _floats(args.attitude_deg, 3, "--attitude-deg")

@@ -75,7 +75,7 @@ def _make_map(size_km: float, out_dir: str) -> tuple[float, float, float]:
 
 
 def run_benchmarks(quick: bool = False) -> dict[str, float]:
-    from testbench.world.geotiff import MapSource
+    from testbench.world.imagery import MapSource
 
     out: dict[str, float] = {}
     with tempfile.TemporaryDirectory() as d:

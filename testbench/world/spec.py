@@ -105,7 +105,7 @@ def _resolve(path: str, base_dir) -> str:
 
 def open_world_imagery(spec_or_path, origin: GeodeticOrigin, cache_dir=None, base_dir=None):
     """MapSource for a GeoTIFF path or a `procedural:` spec (generated and cached)."""
-    from testbench.world.geotiff import MapSource
+    from testbench.world.imagery import MapSource
 
     if is_procedural(spec_or_path):
         img, _ = ensure_world(parse_spec(spec_or_path), origin, cache_dir)

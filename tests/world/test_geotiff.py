@@ -10,7 +10,7 @@ from rasterio.transform import from_origin
 
 from testbench.core.errors import InputError
 from testbench.world.elevation import ElevationModel, FlatElevation
-from testbench.world.geotiff import MapSource
+from testbench.world.imagery import MapSource
 from testbench.world.georef import LocalFrame
 import rasterio
 

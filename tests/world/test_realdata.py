@@ -11,7 +11,7 @@ import rasterio
 
 from testbench.core.interfaces import GeodeticOrigin
 from testbench.world.elevation import ElevationModel
-from testbench.world.geotiff import MapSource
+from testbench.world.imagery import MapSource
 
 DATA = os.environ.get("TESTBENCH_DATA")
 pytestmark = [pytest.mark.realdata,

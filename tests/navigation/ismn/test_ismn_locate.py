@@ -17,7 +17,7 @@ from testbench.core.geodesy import ned_to_geodetic, geodetic_to_ned
 from testbench.core.interfaces import GeodeticOrigin
 from testbench.core.rotations import euler_to_dcm
 from testbench.navigation.ismn.synth import render_plane_frame
-from testbench.world.geotiff import MapSource
+from testbench.world.imagery import MapSource
 
 
 def _parse(argv):

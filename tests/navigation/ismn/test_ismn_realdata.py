@@ -15,7 +15,7 @@ from testbench.core.interfaces import GeodeticOrigin
 from testbench.core.rotations import euler_to_dcm
 from testbench.navigation.ismn import IsmnPipeline, NccMatcher
 from testbench.navigation.ismn.synth import photometric_change, render_plane_frame
-from testbench.world.geotiff import MapSource
+from testbench.world.imagery import MapSource
 
 pytestmark = pytest.mark.realdata
 

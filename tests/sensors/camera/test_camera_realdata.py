@@ -15,7 +15,7 @@ from testbench.core.camera_geometry import PinholeCamera
 from testbench.core.interfaces import GeodeticOrigin
 from testbench.core.rotations import euler_to_dcm
 from testbench.sensors.camera import RenderOptions, render
-from testbench.world.geotiff import MapSource
+from testbench.world.imagery import MapSource
 
 pytestmark = pytest.mark.realdata
 
