@@ -103,7 +103,7 @@ def simulate_relnav(offsets_ned_m, duration_s: float = 4.0, width_px: int = 960,
     params.update(aid_params or {})
     aid = RelnavAid(RelnavAid.Params(**params), ctx=ctx, sensors=sensors, rng=np.random.default_rng(seed + 1))
     imagery = ground_raster(seed)
-    opts = RenderOptions(noise_std=2.0)
+    opts = RenderOptions(noise_std=2.0, haze_visibility_m=40000.0)  # as the swarm scenarios' cameras
     offs = np.asarray(offsets_ned_m, float)
     vel = np.array([5.0, 0.0, 0.0])
     res = SimResult()

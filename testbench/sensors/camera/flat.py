@@ -168,12 +168,15 @@ def samples_inside_map(pyr: RasterPyramid, H_map: np.ndarray, rects) -> bool:
     return True
 
 
-def ground_sky_masks(view: PlaneView, width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
-    """(ground, sky) (H, W) bool masks from the clip lines; exact per pixel, evaluated only in
-    the bands of rows that a line crosses."""
+def ground_sky_masks(view: PlaneView, width: int, height: int) -> tuple[np.ndarray, np.ndarray, bool, bool]:
+    """(ground, sky, all_ground, any_sky): (H, W) bool masks from the clip lines, exact per
+    pixel, evaluated only in the bands of rows that a line crosses; all_ground: every pixel is
+    ground; any_sky: some pixel is sky (both known from the bands, without a pass over the
+    masks)."""
     wc = view.w_coef
     ground = np.ones((height, width), bool)
     sky = np.zeros((height, width), bool)
+    all_ground, any_sky = True, False
     u = np.arange(width, dtype=np.float64)
     for y0 in range(0, height, TILE_PX):
         y1 = min(y0 + TILE_PX, height)
@@ -181,23 +184,27 @@ def ground_sky_masks(view: PlaneView, width: int, height: int) -> tuple[np.ndarr
         lo, hi = min(cw), max(cw)
         if lo > view.w_far and hi < view.w_near:
             continue
+        all_ground = False
         if hi <= view.w_far:
             ground[y0:y1] = False
             sky[y0:y1] = True
+            any_sky = True
             continue
         v = np.arange(y0, y1, dtype=np.float64)
         w = wc[0] * u[None, :] + (wc[1] * v + wc[2])[:, None]
         sky[y0:y1] = w <= view.w_far
         ground[y0:y1] = (w > view.w_far) & (w < view.w_near)
-    return ground, sky
+        any_sky = any_sky or bool(sky[y0:y1].any())
+    return ground, sky, all_ground, any_sky
 
 
 def render_plane(camera: PinholeCamera, centre_ned_m, R_nc, pyr: RasterPyramid,
-                 ground_down_m: float, opts) -> tuple[np.ndarray, np.ndarray, np.ndarray, PlaneView]:
+                 ground_down_m: float, opts) -> tuple[np.ndarray, np.ndarray, np.ndarray, PlaneView, bool]:
     """Render an ideal (undistorted) pinhole frame over flat ground.
 
-    Returns rgb (H, W, 3) uint8, valid (H, W) bool (ground with map data), sky (H, W) bool and
-    the PlaneView used.
+    Returns rgb (H, W, 3) uint8, valid (H, W) bool (ground with map data), sky (H, W) bool, the
+    PlaneView used and `complete`: True when every pixel is ground with map data (then valid
+    is all True and nothing is off the map: callers skip counting).
     """
     W, H = camera.width_px, camera.height_px
     view = plane_view(camera, centre_ned_m, R_nc, ground_down_m, pyr.map_from_ne, opts.near_m, opts.far_m)
@@ -205,18 +212,22 @@ def render_plane(camera: PinholeCamera, centre_ned_m, R_nc, pyr: RasterPyramid,
     rects = merge_tiles(levels, xs, ys)
     rgba = warp_ground(pyr, view.H_map, W, H, rects) if rects else np.zeros((H, W, 4), np.uint8)
     rgb = cv2.cvtColor(rgba, cv2.COLOR_RGBA2RGB)
-    ground, sky = ground_sky_masks(view, W, H)
+    ground, sky, all_ground, any_sky = ground_sky_masks(view, W, H)
     full = bool(rects) and sum((x1 - x0) * (y1 - y0) for x0, y0, x1, y1, _ in rects) == W * H
-    if full and pyr.all_valid and ground.all() and samples_inside_map(pyr, view.H_map, rects):
+    # The common case (the whole frame on ground inside a fully valid map) is known from the
+    # geometry alone: no pass over the alpha channel or the masks (each ~0.3 ms at 1080p).
+    complete = full and pyr.all_valid and all_ground and samples_inside_map(pyr, view.H_map, rects)
+    if complete:
         valid = ground  # every sample inside a fully valid map: alpha is 255 throughout
     else:
         valid = (cv2.extractChannel(rgba, 3) >= 128) & ground
     # Sky colour and haze on a coarse grid.
     need_haze = opts.haze_visibility_m is not None
-    if not need_haze and not sky.any():
-        nodata = ~(valid | sky)
-        if nodata.any():
-            rgb[nodata] = 0  # black, as apply_sky_and_haze leaves it
+    if not need_haze and not any_sky:
+        if not complete:
+            nodata = ~valid
+            if nodata.any():
+                rgb[nodata] = 0  # black, as apply_sky_and_haze leaves it
     else:
         cu, cv_ = coarse_axes(W, H, COARSE_PX)
         U, V = np.meshgrid(cu, cv_)
@@ -232,4 +243,4 @@ def render_plane(camera: PinholeCamera, centre_ned_m, R_nc, pyr: RasterPyramid,
             alpha = haze_alpha(np.minimum(rng_m, 1e9), opts.haze_visibility_m)
         # Haze only on pixels with data: no-data stays black.
         rgb = apply_sky_and_haze(rgb, sky, valid, elev.astype(np.float32), alpha, COARSE_PX, opts)
-    return rgb, valid, sky, view
+    return rgb, valid, sky, view, complete

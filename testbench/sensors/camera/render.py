@@ -43,10 +43,11 @@ def _check_roi(camera: PinholeCamera, roi) -> tuple[int, int, int, int]:
 def _flat(cam: PinholeCamera, C, R_nc, pyr, ground_down_m: float, opts, want_points: bool):
     """Flat-ground render of `cam` (lens distortion included)."""
     if not cam.has_distortion:
-        rgb, valid, sky, view = render_plane(cam, C, R_nc, pyr, ground_down_m, opts)
+        rgb, valid, sky, view, complete = render_plane(cam, C, R_nc, pyr, ground_down_m, opts)
     else:
         dr = distortion_remap(cam)
-        rgb_i, valid_i, sky_i, view = render_plane(dr.ideal, C, R_nc, pyr, ground_down_m, opts)
+        rgb_i, valid_i, sky_i, view, _ = render_plane(dr.ideal, C, R_nc, pyr, ground_down_m, opts)
+        complete = False  # the remap's border: count
         rgb = cv2.remap(rgb_i, dr.map1, dr.map2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
         flags = valid_i.view(np.uint8) | (sky_i.view(np.uint8) << 1)
         flags = cv2.remap(flags, dr.map1, dr.map2, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT)
@@ -72,7 +73,7 @@ def _flat(cam: PinholeCamera, C, R_nc, pyr, ground_down_m: float, opts, want_poi
             t = h / d[..., 2]
         points = np.asarray(C, float) + t[..., None] * d
         points[sky | ~(t > 0)] = np.nan
-    return rgb, valid, sky, ground_depth, points
+    return rgb, valid, sky, ground_depth, points, complete
 
 
 def render(camera: PinholeCamera, mount: CameraMount, pos_ned_m, R_nb, imagery: LocalRaster,
@@ -96,11 +97,12 @@ def render(camera: PinholeCamera, mount: CameraMount, pos_ned_m, R_nb, imagery: 
     pyr = pyramid_for(imagery)
     points = None
     if elevation is None:
-        rgb, valid, sky, ground_depth_roi, points = _flat(
+        rgb, valid, sky, ground_depth_roi, points, complete = _flat(
             cam, C, R_nc, pyr, -float(options.ground_height_m), options, want_ground_points)
     else:
         dem = dem_sampler_for(elevation)
         rgb, valid, sky, points_fn, (t2, k) = render_relief(cam, C, R_nc, pyr, dem, options)
+        complete = False
 
         def ground_depth_roi(u: float, v: float) -> float:
             return float(t2[min(int(round(v / k)), t2.shape[0] - 1), min(int(round(u / k)), t2.shape[1] - 1)])
@@ -118,6 +120,6 @@ def render(camera: PinholeCamera, mount: CameraMount, pos_ned_m, R_nb, imagery: 
         truths = draw_vehicles(rgb, camera, (u0, v0), C, R_nc, vehicles, options.near_m,
                                options.far_m, ground_depth)
     rgb = apply_effects(rgb, cam, options, rng)
-    ground = ~sky
-    offmap = float(np.count_nonzero(ground & ~valid)) / valid.size
+    # Off-map share: pixels neither sky nor ground with data (valid and sky never overlap).
+    offmap = 0.0 if complete else 1.0 - float(np.count_nonzero(valid | sky)) / valid.size
     return RenderedFrame(rgb, valid, sky, offmap, truths, None if roi is None else roi_box, points)

@@ -102,7 +102,7 @@ class CameraParams(ParamsModel):
     gain: float = pydantic.Field(1.0, gt=0)
     vignetting: float = pydantic.Field(0.0, ge=0, le=1)
     exposure_s: float = pydantic.Field(0.0, ge=0, description="motion blur from body rates over the exposure")
-    haze_visibility_m: float | None = 40000.0
+    haze_visibility_m: float | None = pydantic.Field(None, gt=0, description="aerial perspective: 63 % towards the horizon colour at this range (m); None: no haze")
     max_window_px: int = pydantic.Field(4096, ge=256, description="largest map window side read per frame")
     render_vehicles: bool = True
     render_image: bool = pydantic.Field(True, description="False: no pixels (black frames at no cost), only the other vehicles' truth annotations (oracle detector studies)")
