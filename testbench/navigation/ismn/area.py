@@ -58,32 +58,39 @@ def as_u8(img: np.ndarray) -> np.ndarray:
 class Pyramid:
     """Levels 0..levels of a grey image and its valid mask, level l reduced 2^l times.
 
-    Levels are made on demand, each straight from level 0 by an exact-factor INTER_AREA resize
-    of the largest crop divisible by 2^l (one pass; the chained halving gives the same image);
-    a reduced pixel is valid only when every pixel it covers is. pyr[l] -> (grey uint8, valid).
+    Levels are made on demand, each from the level above it by an exact-factor-2 INTER_AREA
+    resize of its largest even crop (the 2 x 2 mean: a level costs a quarter of the one before,
+    so a coarse level does not cost a pass over the full-resolution image); a reduced pixel is
+    valid only when every pixel it covers is. pyr[l] -> (grey uint8, valid).
     """
 
     def __init__(self, img: np.ndarray, valid: np.ndarray, levels: int):
         self._levels: dict[int, tuple[np.ndarray, np.ndarray]] = {0: (img, valid)}
-        self._v255 = None
+        self._v255: dict[int, np.ndarray] = {}
         self.n = levels + 1
 
     def __len__(self) -> int:
         return self.n
+
+    def _valid255(self, lev: int) -> np.ndarray:
+        """Level lev's valid mask as uint8 0/255 (the form INTER_AREA averages)."""
+        v = self._v255.get(lev)
+        if v is None:
+            v = self._v255[lev] = self._levels[lev][1].view(np.uint8) * np.uint8(255)
+        return v
 
     def __getitem__(self, lev: int) -> tuple[np.ndarray, np.ndarray]:
         if lev < 0 or lev >= self.n:
             raise IndexError(lev)
         out = self._levels.get(lev)
         if out is None:
-            img, valid = self._levels[0]
-            if self._v255 is None:
-                self._v255 = valid.view(np.uint8) * np.uint8(255)
-            k = 2**lev
-            h, w = (img.shape[0] // k) * k, (img.shape[1] // k) * k
-            f = 1.0 / k
-            g = cv2.resize(img[:h, :w], None, fx=f, fy=f, interpolation=cv2.INTER_AREA)
-            v = cv2.resize(self._v255[:h, :w], None, fx=f, fy=f, interpolation=cv2.INTER_AREA) == 255
+            img, _ = self[lev - 1]
+            v255 = self._valid255(lev - 1)
+            h, w = (img.shape[0] // 2) * 2, (img.shape[1] // 2) * 2
+            g = cv2.resize(img[:h, :w], (w // 2, h // 2), interpolation=cv2.INTER_AREA)
+            v8 = cv2.resize(v255[:h, :w], (w // 2, h // 2), interpolation=cv2.INTER_AREA)
+            v = v8 == 255
+            self._v255[lev] = np.where(v, np.uint8(255), np.uint8(0))
             out = self._levels[lev] = (g, v)
         return out
 
