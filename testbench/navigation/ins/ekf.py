@@ -65,15 +65,27 @@ class ErrorStateEKF:
     the GNSS receiver's correlated position error (0 sigma: no such error is modelled);
     fix_error_sigma_m, fix_error_tau_s: the same for the error successive position fixes share
     (sigma: one figure for every axis, or (3,) per NED axis).
-    vehicle_id is only used in error messages.
+    bias_model: "random_walk" (the IMU bias errors are driven by the Gauss-Markov process's
+    noise, 2 s^2 / tau, plus the rate random walk, and never decay; the nominal biases are
+    held) or "gauss_markov" (errors and nominal biases decay with tau: right only when the whole
+    bias is the zero-mean in-run process). A real bias is a turn-on constant plus the in-run
+    process: a consumer MEMS gyro's turn-on bias (0.5 deg/s) is 180 times its instability, and
+    decaying its estimate towards zero left a tilt error growing at 0.07 deg/s that GNSS could
+    not hold (tests/navigation/ins). vehicle_id is only used in error messages.
     """
 
     def __init__(self, noise: ImuNoiseSI, *, gate_probability: float = 0.999,
                  cov_interval_s: float = 0.05, baro_bias_rw_m_sqrt_s: float = 0.01,
                  gnss_error_sigma_m: float = 0.0, gnss_error_tau_s: float = math.inf,
                  fix_error_sigma_m: float | np.ndarray = 0.0, fix_error_tau_s: float = math.inf,
-                 vehicle_id: str | None = None):
+                 bias_model: str = "random_walk", vehicle_id: str | None = None):
+        if bias_model not in ("random_walk", "gauss_markov"):
+            raise ValueError(f"bias_model {bias_model!r}: expected 'random_walk' or 'gauss_markov'")
         self.noise = noise
+        # Correlation times of the IMU bias ERRORS in F (inf: random walk) and of the nominal biases.
+        gm = bias_model == "gauss_markov"
+        self._tau_bg_s = noise.gyro_bias_tau_s if gm else math.inf
+        self._tau_ba_s = noise.accel_bias_tau_s if gm else math.inf
         self.gate_probability = float(gate_probability)
         self.cov_interval_s = float(cov_interval_s)
         self.vehicle_id = vehicle_id
@@ -157,13 +169,15 @@ class ErrorStateEKF:
         ins, n = self.ins, self.noise
         f_n = np.array(self._acc_fn) / T
         F = continuous_F(ins.lat_rad, ins.h_m, ins.vel, self.C_nb, f_n,
-                         n.gyro_bias_tau_s, n.accel_bias_tau_s, tau_gnss_s=self.gnss_error_tau_s, tau_fix_s=self.fix_error_tau_s)
+                         self._tau_bg_s, self._tau_ba_s, tau_gnss_s=self.gnss_error_tau_s, tau_fix_s=self.fix_error_tau_s)
         Phi, Qd = discretize(F, self._qc, T)
         P = Phi @ self.P @ Phi.T + Qd
         self.P = 0.5 * (P + P.T)
-        # The nominal Gauss-Markov biases decay like their errors do (consistent model).
-        self.b_g *= math.exp(-T / n.gyro_bias_tau_s)
-        self.b_a *= math.exp(-T / n.accel_bias_tau_s)
+        # Gauss-Markov nominal states decay like their errors do (consistent model).
+        if math.isfinite(self._tau_bg_s):
+            self.b_g *= math.exp(-T / self._tau_bg_s)
+        if math.isfinite(self._tau_ba_s):
+            self.b_a *= math.exp(-T / self._tau_ba_s)
         if math.isfinite(self.gnss_error_tau_s):
             self.b_gnss *= math.exp(-T / self.gnss_error_tau_s)
         if math.isfinite(self.fix_error_tau_s):

@@ -97,6 +97,9 @@ class InsEkfNavigator(Navigator):
     class Params(ParamsModel):
         imu_preset: str = "paper"
         imu: ImuNoiseParams = ImuNoiseParams()
+        imu_bias_model: Literal["random_walk", "gauss_markov"] = "random_walk"
+        """How the filter carries the IMU biases (see ErrorStateEKF): random_walk holds the
+        turn-on bias it has estimated; gauss_markov lets estimates decay towards zero."""
         initial_sigma: InitialSigmas = InitialSigmas()
         meas_sigma: MeasurementSigmas = MeasurementSigmas()
         gate_probability: float = pydantic.Field(0.999, gt=0.5, le=1.0)
@@ -170,7 +173,7 @@ class InsEkfNavigator(Navigator):
             baro_bias_rw_m_sqrt_s=params.baro_bias_rw_m_sqrt_s,
             gnss_error_sigma_m=params.gnss_error_sigma_m, gnss_error_tau_s=params.gnss_error_tau_s,
             fix_error_sigma_m=self.fix_error_sigma_ned_m, fix_error_tau_s=params.fix_error_tau_s,
-            vehicle_id=ctx.vehicle_id,
+            bias_model=params.imu_bias_model, vehicle_id=ctx.vehicle_id,
         )
         self._mag_model: OnboardMagneticModel | None = None
         self._airspeed: float | None = None
