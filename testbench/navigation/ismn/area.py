@@ -76,7 +76,7 @@ class Pyramid:
         """Level lev's valid mask as uint8 0/255 (the form INTER_AREA averages)."""
         v = self._v255.get(lev)
         if v is None:
-            v = self._v255[lev] = self._levels[lev][1].view(np.uint8) * np.uint8(255)
+            v = self._v255[lev] = cv2.multiply(self._levels[lev][1].view(np.uint8), 255)
         return v
 
     def __getitem__(self, lev: int) -> tuple[np.ndarray, np.ndarray]:
@@ -89,9 +89,8 @@ class Pyramid:
             h, w = (img.shape[0] // 2) * 2, (img.shape[1] // 2) * 2
             g = cv2.resize(img[:h, :w], (w // 2, h // 2), interpolation=cv2.INTER_AREA)
             v8 = cv2.resize(v255[:h, :w], (w // 2, h // 2), interpolation=cv2.INTER_AREA)
-            v = v8 == 255
-            self._v255[lev] = np.where(v, np.uint8(255), np.uint8(0))
-            out = self._levels[lev] = (g, v)
+            self._v255[lev] = cv2.compare(v8, 255, cv2.CMP_EQ)  # 255 where all four were valid
+            out = self._levels[lev] = (g, v8 == 255)
         return out
 
 
@@ -123,7 +122,7 @@ class AreaMatcherBase(SceneMatcher):
         p = self.p
         o_valid = prior.ortho_valid if prior.ortho_valid is not None else np.ones(ortho_frame.shape, bool)
         m_valid = prior.map_valid if prior.map_valid is not None else np.ones(map_window.shape[:2], bool)
-        if o_valid.sum() < 64:
+        if np.count_nonzero(o_valid) < 64:  # (a bool .sum() costs ~0.7 ms on a 2 Mpx frame)
             return None
         Ho, Wo = ortho_frame.shape
         L = max(0, math.ceil(math.log2(max(Ho, Wo) / p.coarse_size_px)))

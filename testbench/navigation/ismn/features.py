@@ -52,7 +52,7 @@ def robust_image(img: np.ndarray, valid: np.ndarray | None, kind: str = "gradmag
         # In place: gx and gy are this function's own arrays (no extra image-sized buffer).
         mag = np.sqrt(np.add(np.square(gx, out=gx), np.square(gy, out=gy), out=gx), out=gx)
         local = cv2.boxFilter(mag, -1, (norm_px, norm_px))
-        local += np.float32(1e-3 + 0.1 * float(local.mean()))
+        local += np.float32(1e-3 + 0.1 * cv2.mean(local)[0])
         f = cv2.sqrt(np.divide(mag, local, out=mag))
     elif kind == "clahe":
         u8 = np.clip(x * 255, 0, 255).astype(np.uint8)

@@ -148,7 +148,7 @@ class IsmnPipeline:
             self._maps.features(mapw, kind)  # once per cached read: part of the map access
         t1 = time.perf_counter()
         lat["window"] = 1e3 * (t1 - t0)
-        if Ho < 16 or Wo < 16 or mapw.valid.mean() < 0.05:
+        if Ho < 16 or Wo < 16 or np.count_nonzero(mapw.valid) < 0.05 * mapw.valid.size:
             return fail("search window off the reference map", window=win)
 
         small, K_s = self.ortho.prepare(frame_image, nadir_gsd_m(self.camera, height) / g)

@@ -86,7 +86,7 @@ def tile_grid(valid0: np.ndarray, coarse_feat: np.ndarray, sL: int, tile_px: int
             if _valid_share(valid0[y0:y0 + T0, x0:x0 + T0]) < min_valid:
                 continue
             c = coarse_feat[y0 // sL:(y0 + T0) // sL + 1, x0 // sL:(x0 + T0) // sL + 1]
-            cands.append((float(c.var()) if c.size else 0.0, x0, y0))
+            cands.append((_std(c) ** 2 if c.size else 0.0, x0, y0))
     cands.sort(reverse=True)
     return T0, [(x0, y0) for _, x0, y0 in cands[:max_tiles]]
 
