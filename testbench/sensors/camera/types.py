@@ -104,7 +104,8 @@ class RenderedFrame:
     the frame's pixels that show ground the map does not cover (no-data, drawn black);
     vehicles: truth of the other vehicles; roi: (u0, v0, u1, v1) of the rendered region in the
     full frame (the whole frame when None); ground_points_ned_m (h, w, 3) NED of each pixel's
-    ground point (nan where sky), only when asked for.
+    ground point (nan where sky), only when asked for. The masks are read-only (frames that
+    are all ground share one constant pair): copy them to modify.
     """
 
     image: np.ndarray
