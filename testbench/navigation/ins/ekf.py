@@ -29,6 +29,7 @@ from scipy.stats import chi2
 
 from testbench.core.errors import SimulationAborted
 from testbench.core.messages import CorrectionInfo
+from testbench.core.units import STANDARD_GRAVITY_MPS2
 from testbench.navigation.ins.error_model import (
     IA,
     IBA,
@@ -226,26 +227,43 @@ class ErrorStateEKF:
                               nis=nis, accepted=accepted)
 
     def reset_position(self, kind: str, t_s: float, y, H, R, elapsed_s: float) -> CorrectionInfo:
-        """Re-acquire the position from a fix the gate keeps rejecting (residual y (3,) in
-        origin NED m, Jacobian H (3, 22), noise R (3, 3)), after elapsed_s seconds without an
-        accepted one.
+        """Re-acquire the position (and velocity) from a measurement the gate keeps rejecting,
+        after elapsed_s seconds without an accepted one: a position fix (residual y (3,) in
+        origin NED m) or a GNSS fix (y (6,): position, then velocity NED m/s); H (n, 22),
+        R (n, n).
 
         The position block of P becomes what the disagreement says, H_p^T (y y^T + R) H_p in
         the error frame, with its cross-covariances cleared (the old correlations described a
-        filter that was wrong); the velocity variance grows by (y / elapsed_s)^2, the velocity
-        error that would explain the disagreement; then the fix is fused without the gate. The
-        returned info carries the NIS the gate saw before the reset, and accepted=True.
+        filter that was wrong). Without a velocity measurement the velocity variance grows by
+        (y / elapsed_s)^2, the velocity error that would explain the disagreement; with one the
+        velocity block is set like the position's, and the tilt variance grows by the tilt that
+        would have built that velocity error over elapsed_s (|dv_horizontal| / (g elapsed_s)):
+        a filter that lost its velocity was wrong about its level too. Then the measurement is
+        fused without the gate. The returned info carries the NIS the gate saw before the
+        reset, and accepted=True.
         """
         self.flush()
         y = np.asarray(y, float)
-        Hp = np.asarray(H, float)[:, IP]
-        nis_before = float(y @ np.linalg.solve(np.asarray(H) @ self.P @ np.asarray(H).T + R, y))
+        H = np.asarray(H, float)
+        R = np.asarray(R, float)
+        nis_before = float(y @ np.linalg.solve(H @ self.P @ H.T + R, y))
+        elapsed = max(float(elapsed_s), 1.0)
         P = self.P.copy()
+        Hp = H[:3, IP]
         P[IP, :] = 0.0
         P[:, IP] = 0.0
-        P[IP, IP] = Hp.T @ (np.outer(y, y) + np.asarray(R, float)) @ Hp
-        dv_mps = (Hp.T @ y) / max(float(elapsed_s), 1.0)
-        P[IV, IV] += np.diag(dv_mps**2)
+        P[IP, IP] = Hp.T @ (np.outer(y[:3], y[:3]) + R[:3, :3]) @ Hp
+        if len(y) >= 6:
+            Hv = H[3:6, IV]
+            P[IV, :] = 0.0
+            P[:, IV] = 0.0
+            P[IV, IV] = Hv.T @ (np.outer(y[3:6], y[3:6]) + R[3:6, 3:6]) @ Hv
+            tilt_rad = float(np.hypot(y[3], y[4])) / (STANDARD_GRAVITY_MPS2 * elapsed)
+            tilt = [IA.start, IA.start + 1]  # north and east attitude errors (diagonal entries)
+            P[tilt, tilt] += tilt_rad**2
+        else:
+            dv_mps = (Hp.T @ y[:3]) / elapsed
+            P[IV, IV] += np.diag(dv_mps**2)
         self.P = 0.5 * (P + P.T)
         info = self.update(kind, t_s, y, H, R, gate=False)
         return CorrectionInfo(t_s=info.t_s, kind=info.kind, innovation=info.innovation,

@@ -139,7 +139,15 @@ class InsEkfNavigator(Navigator):
         left it confident and wrong): the next fix resets the position to it, as PX4's EKF2
         resets to GNSS after a fusion timeout (EKF.reset_position). 0 disables the reset. A
         matcher that is consistently wrong for this long is followed: the price of never
-        diverging for good on an overconfident covariance."""
+        diverging for good on an overconfident covariance. No reset while GNSS fixes are being
+        accepted (then the fixes are what is wrong)."""
+        gnss_reset_after_s: float = pydantic.Field(5.0, ge=0.0)
+        """GNSS fixes that keep arriving and keep failing the gate for this long (s): the filter
+        has diverged (a consumer IMU's unmodelled errors in a hard manoeuvre, a long outage);
+        the next fix resets position and velocity to it and widens the tilt (see
+        ErrorStateEKF.reset_position), as PX4's EKF2 does after a GNSS fusion timeout. 0
+        disables the reset. No reset while position fixes (scene matching) are being accepted:
+        then the filter agrees with them and GNSS is what is wrong (spoofed)."""
         use_baro: bool = True
         use_mag: bool = True
         mag_mode: Literal["heading", "vector"] = "heading"
@@ -180,6 +188,7 @@ class InsEkfNavigator(Navigator):
         self._initialized = False
         self._last_gnss_t = -math.inf
         self._last_fix_ok_t_s: float | None = None  # last accepted position fix (None: none yet)
+        self._last_gnss_ok_t_s: float | None = None  # last accepted GNSS fix (None: none yet)
 
     # ----------------------------------------------------------- Navigator API
     def initialize(self, t_s: float, initial: NavEstimate) -> None:
@@ -239,7 +248,8 @@ class InsEkfNavigator(Navigator):
             info = ekf.update(kind, t, y, H, R)
             if self._last_fix_ok_t_s is None or info.accepted:
                 self._last_fix_ok_t_s = t
-            elif p.fix_reset_after_s > 0.0 and t - self._last_fix_ok_t_s >= p.fix_reset_after_s:
+            elif (p.fix_reset_after_s > 0.0 and t - self._last_fix_ok_t_s >= p.fix_reset_after_s
+                  and not self._recently(self._last_gnss_ok_t_s, t, p.fix_reset_after_s)):
                 info = ekf.reset_position(f"{kind}:reset", t, y, H, R, t - self._last_fix_ok_t_s)
                 self._last_fix_ok_t_s = t
             return info
@@ -325,7 +335,22 @@ class InsEkfNavigator(Navigator):
             yv, Hv, Rv = meas.gnss_velocity(ekf, vel, vel_sigma)
             y, H = np.concatenate([y, yv]), np.vstack([H, Hv])
             R = np.block([[R, np.zeros((3, 3))], [np.zeros((3, 3)), Rv]])
-        return ekf.update("gnss", t, y, H, R)
+        info = ekf.update("gnss", t, y, H, R)
+        reset_after = self.params.gnss_reset_after_s
+        if self._last_gnss_ok_t_s is None or info.accepted:
+            self._last_gnss_ok_t_s = t
+        elif (reset_after > 0.0 and t - self._last_gnss_ok_t_s >= reset_after
+              and not self._recently(self._last_fix_ok_t_s, t, reset_after)):
+            info = ekf.reset_position("gnss:reset", t, y, H, R, t - self._last_gnss_ok_t_s)
+            self._last_gnss_ok_t_s = t
+        return info
+
+    @staticmethod
+    def _recently(last_ok_t_s: float | None, t_s: float, window_s: float) -> bool:
+        """True when the OTHER absolute aid had a fix accepted within window_s: then the filter
+        agrees with one source and the one it keeps rejecting is the faulty one (a spoofer, a
+        matcher locked on the wrong place), so no reset to it."""
+        return last_ok_t_s is not None and t_s - last_ok_t_s < window_s
 
     def _require_init(self) -> None:
         if not self._initialized:

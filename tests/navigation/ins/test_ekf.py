@@ -299,3 +299,38 @@ def test_turn_on_bias_far_beyond_the_instability_is_held():
     # Measured: random walk 0.011 deg, 2.6 deg/h; Gauss-Markov 7.9 deg, 460 deg/h.
     assert tilt_rw < 0.05 and bias_rw < 20.0, (tilt_rw, bias_rw)
     assert tilt_gm > 1.0 and bias_gm > 10.0 * bias_rw, (tilt_gm, bias_gm, tilt_rw, bias_rw)
+
+
+def _gnss(t, ned, vel=(0.0, 0.0, 0.0)):
+    """A GNSS fix at local NED `ned` (origin frame), 2 m / 0.1 m/s claimed."""
+    lat, lon, h = geodesy.ned_to_geodetic(np.asarray(ned, float), ORIGIN.lat_rad, ORIGIN.lon_rad, ORIGIN.alt_m)
+    return GnssFix(t, float(lat), float(lon), float(h), np.asarray(vel, float), np.full(3, 2.0), np.full(3, 0.1))
+
+
+def test_gnss_rejected_past_the_timeout_resets_unless_the_fixes_agree():
+    """A filter confidently 200 m off its GNSS (every fix gated out) re-acquires after
+    gnss_reset_after_s: the next fix resets position and velocity to it. While scene-matching
+    fixes that agree with the filter keep being accepted the GNSS is what is wrong (a jump
+    spoofer): no reset, the filter stays with the fixes."""
+    true_ned = geodesy.geodetic_to_ned(LAT0, LON0, H0, ORIGIN.lat_rad, ORIGIN.lon_rad, ORIGIN.alt_m)
+    spoofed = true_ned + np.array([200.0, 0.0, 0.0])
+    w, f = static_imu(LAT0, H0, np.array([1.0, 0, 0, 0]))
+    for with_fixes in (False, True):
+        nav = _converged_static_nav()
+        infos = []
+        for k in range(1, 9):  # a GNSS fix a second at t = 11..18 s, 200 m off the filter
+            t = 10.0 + k
+            nav.predict(ImuSample(t, w, f))
+            if with_fixes:
+                assert nav.correct(PositionFix(t - 0.5, true_ned, np.diag([4.0, 4.0, 9.0]), 0.9)).accepted
+            infos.append(nav.correct(_gnss(t, spoofed)))
+        kinds = [i.kind for i in infos]
+        if not with_fixes:
+            # the last accepted GNSS fix was at t = 10 s: rejected at 11-14 s, the one at 15 s resets
+            assert [i.accepted for i in infos[:5]] == [False] * 4 + [True]
+            assert kinds[4] == "gnss:reset" and infos[4].nis > 100.0
+            assert np.linalg.norm(nav.estimate().pos_ned_m - spoofed) < 3.0
+            assert all(i.accepted for i in infos[5:]) and kinds[5] == "gnss"
+        else:
+            assert not any(i.accepted for i in infos) and "gnss:reset" not in kinds
+            assert np.linalg.norm(nav.estimate().pos_ned_m - true_ned) < 3.0
