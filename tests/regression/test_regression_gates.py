@@ -15,7 +15,7 @@ Left out, with the reason:
 Known failures, kept visible (measured 2026-11-23): paper_swarm_relnav does not meet its gates
 yet (15 s: relnav.error_m.max 4.97 m against 0.4, formation.error_m.rms 12.1 m against 2);
 lowalt_ismn_150m loses the scene match for tens of seconds after the multirotor's attitude changes
-at the corners (120 s: fix rate 0.81 against 0.95; ismn mean 2.0 m, inside its 4.6 m): the consumer
+at the corners (120 s: fix rate 0.92 against 0.95; ismn mean inside its 4.6 m): the consumer
 IMU's scale-factor and cross-axis errors, which the 15-state filter does not model, leave tilt
 errors of 1-3 deg that it believes are 0.2 deg. They are strict xfails, so the day one passes the
 suite says so and its marker must go.
@@ -46,7 +46,7 @@ GATED = {
 
 
 KNOWN_FAILING = {
-    "lowalt_ismn_150m": "fix rate 0.81 against 0.95 in 120 s: the match is lost for tens of seconds after each corner, where the consumer IMU's unmodelled scale-factor and cross-axis errors leave 1-3 deg of tilt error",
+    "lowalt_ismn_150m": "fix rate 0.92 against 0.95 in 120 s: the match is lost for tens of seconds after each corner, where the consumer IMU's unmodelled scale-factor and cross-axis errors leave 1-3 deg of tilt error",
     "paper_swarm_relnav": "relative navigation and formation gates not met yet (relnav max 4.97 m, formation rms 12.1 m in 15 s)",
 }
 
