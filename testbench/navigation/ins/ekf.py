@@ -167,7 +167,7 @@ class ErrorStateEKF:
         T = self._acc_T
         if T <= 0.0:
             return
-        ins, n = self.ins, self.noise
+        ins = self.ins
         f_n = np.array(self._acc_fn) / T
         F = continuous_F(ins.lat_rad, ins.h_m, ins.vel, self.C_nb, f_n,
                          self._tau_bg_s, self._tau_ba_s, tau_gnss_s=self.gnss_error_tau_s, tau_fix_s=self.fix_error_tau_s)

@@ -245,13 +245,8 @@ class InsEkfNavigator(Navigator):
             white = cov - np.diag(np.minimum(self.fix_error_sigma_ned_m**2, 0.99 * lam_min))
             y, H, R = meas.position_ned(ekf, measurement.pos_ned_m, white, self.ctx.origin)
             kind = f"position_fix:{measurement.source}"
-            info = ekf.update(kind, t, y, H, R)
-            if self._last_fix_ok_t_s is None or info.accepted:
-                self._last_fix_ok_t_s = t
-            elif (p.fix_reset_after_s > 0.0 and t - self._last_fix_ok_t_s >= p.fix_reset_after_s
-                  and not self._recently(self._last_gnss_ok_t_s, t, p.fix_reset_after_s)):
-                info = ekf.reset_position(f"{kind}:reset", t, y, H, R, t - self._last_fix_ok_t_s)
-                self._last_fix_ok_t_s = t
+            info, self._last_fix_ok_t_s = self._update_or_reset(
+                kind, t, y, H, R, self._last_fix_ok_t_s, self._last_gnss_ok_t_s, p.fix_reset_after_s)
             return info
         if isinstance(measurement, BaroSample):
             if not p.use_baro:
@@ -335,22 +330,26 @@ class InsEkfNavigator(Navigator):
             yv, Hv, Rv = meas.gnss_velocity(ekf, vel, vel_sigma)
             y, H = np.concatenate([y, yv]), np.vstack([H, Hv])
             R = np.block([[R, np.zeros((3, 3))], [np.zeros((3, 3)), Rv]])
-        info = ekf.update("gnss", t, y, H, R)
-        reset_after = self.params.gnss_reset_after_s
-        if self._last_gnss_ok_t_s is None or info.accepted:
-            self._last_gnss_ok_t_s = t
-        elif (reset_after > 0.0 and t - self._last_gnss_ok_t_s >= reset_after
-              and not self._recently(self._last_fix_ok_t_s, t, reset_after)):
-            info = ekf.reset_position("gnss:reset", t, y, H, R, t - self._last_gnss_ok_t_s)
-            self._last_gnss_ok_t_s = t
+        info, self._last_gnss_ok_t_s = self._update_or_reset(
+            "gnss", t, y, H, R, self._last_gnss_ok_t_s, self._last_fix_ok_t_s, self.params.gnss_reset_after_s)
         return info
 
-    @staticmethod
-    def _recently(last_ok_t_s: float | None, t_s: float, window_s: float) -> bool:
-        """True when the OTHER absolute aid had a fix accepted within window_s: then the filter
-        agrees with one source and the one it keeps rejecting is the faulty one (a spoofer, a
-        matcher locked on the wrong place), so no reset to it."""
-        return last_ok_t_s is not None and t_s - last_ok_t_s < window_s
+    def _update_or_reset(self, kind: str, t: float, y, H, R, last_ok_t_s: float | None,
+                         other_ok_t_s: float | None, reset_after_s: float) -> tuple[CorrectionInfo, float | None]:
+        """Fuse an absolute fix (GNSS or position fix) through the gate; when this source has
+        been rejected for reset_after_s (> 0), reset the filter to it (ErrorStateEKF.
+        reset_position), unless the OTHER absolute aid had a fix accepted in that time: then
+        the filter agrees with one source and the one it keeps rejecting is the faulty one (a
+        spoofer, a matcher locked on the wrong place). Returns (info, this source's new
+        last-accepted time)."""
+        info = self.ekf.update(kind, t, y, H, R)
+        if last_ok_t_s is None or info.accepted:
+            return info, t
+        lost_s = t - last_ok_t_s
+        other_agrees = other_ok_t_s is not None and t - other_ok_t_s < reset_after_s
+        if reset_after_s > 0.0 and lost_s >= reset_after_s and not other_agrees:
+            return self.ekf.reset_position(f"{kind}:reset", t, y, H, R, lost_s), t
+        return info, last_ok_t_s
 
     def _require_init(self) -> None:
         if not self._initialized:
