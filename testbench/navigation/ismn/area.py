@@ -76,7 +76,7 @@ class Pyramid:
         """Level lev's valid mask as uint8 0/255 (the form INTER_AREA averages)."""
         v = self._v255.get(lev)
         if v is None:
-            v = self._v255[lev] = cv2.multiply(self._levels[lev][1].view(np.uint8), 255)
+            v = self._v255[lev] = cv2.compare(self._levels[lev][1].view(np.uint8), 0, cv2.CMP_GT)  # 0/255
         return v
 
     def __getitem__(self, lev: int) -> tuple[np.ndarray, np.ndarray]:
