@@ -190,7 +190,7 @@ def ground_sky_masks(view: PlaneView, width: int, height: int) -> tuple[np.ndarr
         return constant_mask(height, width, True), constant_mask(height, width, False), True, False
     ground = np.ones((height, width), bool)
     sky = np.zeros((height, width), bool)
-    all_ground, any_sky = True, False
+    any_sky = False  # (all_ground is False from here: some corner, hence some band, is not ground)
     u = np.arange(width, dtype=np.float64)
     for y0 in range(0, height, TILE_PX):
         y1 = min(y0 + TILE_PX, height)
@@ -198,7 +198,6 @@ def ground_sky_masks(view: PlaneView, width: int, height: int) -> tuple[np.ndarr
         lo, hi = min(cw), max(cw)
         if lo > view.w_far and hi < view.w_near:
             continue
-        all_ground = False
         if hi <= view.w_far:
             ground[y0:y1] = False
             sky[y0:y1] = True
@@ -209,7 +208,7 @@ def ground_sky_masks(view: PlaneView, width: int, height: int) -> tuple[np.ndarr
         sky[y0:y1] = w <= view.w_far
         ground[y0:y1] = (w > view.w_far) & (w < view.w_near)
         any_sky = any_sky or bool(sky[y0:y1].any())
-    return ground, sky, all_ground, any_sky
+    return ground, sky, False, any_sky
 
 
 def render_plane(camera: PinholeCamera, centre_ned_m, R_nc, pyr: RasterPyramid,
