@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
+from itertools import groupby
 
 import cv2
 import numpy as np
@@ -77,9 +78,8 @@ def map_scale(H: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 def tile_levels(view: PlaneView, width: int, height: int, max_level: int, lod_bias: float):
     """Pyramid level per TILE_PX tile (ny, nx): >= 0, or _SKY / _NEAR for tiles without ground."""
-    xs = np.minimum(np.arange(0, width + TILE_PX, TILE_PX), width).astype(float)
-    ys = np.minimum(np.arange(0, height + TILE_PX, TILE_PX), height).astype(float)
-    xs, ys = np.unique(xs), np.unique(ys)
+    xs = np.append(np.arange(0, width, TILE_PX), width)
+    ys = np.append(np.arange(0, height, TILE_PX), height)
     U, V = np.meshgrid(xs - 0.5, ys - 0.5)
     wc = view.w_coef
     W = wc[0] * U + wc[1] * V + wc[2]
@@ -96,38 +96,36 @@ def tile_levels(view: PlaneView, width: int, height: int, max_level: int, lod_bi
         lod = np.log2(np.maximum(s, 1e-12)) + lod_bias
     lod = np.where(np.isfinite(lod), lod, max_level)
     lvl = np.clip(np.floor(lod + 0.5), 0, max_level).astype(int)
-    lvl_t = np.maximum.reduce([lvl[:-1, :-1], lvl[1:, :-1], lvl[:-1, 1:], lvl[1:, 1:]])
-    corners = np.stack([W[:-1, :-1], W[1:, :-1], W[:-1, 1:], W[1:, 1:]])
-    lvl_t = np.where((corners <= view.w_far).all(axis=0), _SKY, lvl_t)
-    lvl_t = np.where((corners >= view.w_near).all(axis=0), _NEAR, lvl_t)
-    return lvl_t, xs.astype(int), ys.astype(int)
+    lvl_t = np.maximum(np.maximum(lvl[:-1, :-1], lvl[1:, :-1]), np.maximum(lvl[:-1, 1:], lvl[1:, 1:]))
+    w_lo = np.minimum(np.minimum(W[:-1, :-1], W[1:, :-1]), np.minimum(W[:-1, 1:], W[1:, 1:]))
+    w_hi = np.maximum(np.maximum(W[:-1, :-1], W[1:, :-1]), np.maximum(W[:-1, 1:], W[1:, 1:]))
+    lvl_t[w_hi <= view.w_far] = _SKY  # every corner beyond the far line
+    lvl_t[w_lo >= view.w_near] = _NEAR  # every corner nearer than the near line
+    return lvl_t, xs, ys
 
 
 def merge_tiles(levels: np.ndarray, xs: np.ndarray, ys: np.ndarray) -> list[tuple[int, int, int, int, int]]:
     """Rectangles (x0, y0, x1, y1, level) covering the tiles with ground: horizontal runs of
     one level, merged downwards while the run repeats."""
+    # Plain lists and groupby: indexing numpy scalars in these loops cost ~0.2 ms a frame.
+    xs_l, ys_l = xs.tolist(), ys.tolist()
     rects: list[list[int]] = []
     open_runs: dict[tuple[int, int, int], list[int]] = {}
-    for j in range(levels.shape[0]):
-        runs = []
-        i = 0
-        row = levels[j]
-        while i < len(row):
-            k = i
-            while k + 1 < len(row) and row[k + 1] == row[i]:
-                k += 1
-            if row[i] >= 0:
-                runs.append((int(xs[i]), int(xs[k + 1]), int(row[i])))
-            i = k + 1
+    for j, row in enumerate(levels.tolist()):
         new_open = {}
-        for run in runs:
-            r = open_runs.get(run)
-            if r is not None:
-                r[3] = int(ys[j + 1])
-            else:
-                r = [run[0], int(ys[j]), run[1], int(ys[j + 1]), run[2]]
-                rects.append(r)
-            new_open[run] = r
+        i = 0
+        for level, group in groupby(row):
+            k = i + sum(1 for _ in group)
+            if level >= 0:
+                run = (xs_l[i], xs_l[k], level)
+                r = open_runs.get(run)
+                if r is not None:
+                    r[3] = ys_l[j + 1]
+                else:
+                    r = [run[0], ys_l[j], run[1], ys_l[j + 1], level]
+                    rects.append(r)
+                new_open[run] = r
+            i = k
         open_runs = new_open
     return [tuple(r) for r in rects]
 

@@ -197,6 +197,21 @@ def test_noise_is_seeded(nadir):
     assert np.corrcoef((f1.astype(float) - clean).ravel(), (f2.astype(float) - clean).ravel())[0, 1] < 0.05
 
 
+def test_noise_bands_are_independent_draws():
+    """Rows are noised in bands, each a window of a small fixed field at its own seeded offset:
+    every band has the configured statistics, and neighbouring bands are not copies."""
+    from testbench.sensors.camera.effects import _NOISE_BAND_PX, add_noise
+
+    h = 3 * _NOISE_BAND_PX
+    img = add_noise(np.full((h, 400, 3), 100, np.uint8), 0.0, 3.0, np.random.default_rng(3))
+    n = img.astype(float) - 100.0
+    bands = [n[i * _NOISE_BAND_PX:(i + 1) * _NOISE_BAND_PX].ravel() for i in range(3)]
+    for b in bands:
+        assert abs(b.mean()) < 0.1 and b.std() == pytest.approx(3.0, rel=0.05)
+    assert abs(np.corrcoef(bands[0], bands[1])[0, 1]) < 0.05
+    assert abs(np.corrcoef(bands[1], bands[2])[0, 1]) < 0.05
+
+
 @pytest.mark.parametrize("pitch_deg", [-90.0, -50.0])
 def test_fine_checkerboard_from_far_is_flat_grey(pitch_deg):
     """1-map-pixel checkerboard seen with ~8 map pixels per image pixel: the mip level chosen
