@@ -24,7 +24,7 @@ class TruthPassThrough(Navigator):
     class Params(ParamsModel):
         pass
 
-    def __init__(self, params: Params | None = None, *, ctx: BuildContext | None = None):
+    def __init__(self, params: Params | None = None, *, ctx: BuildContext | None = None, **_: object):
         self._est: NavEstimate | None = None
 
     def initialize(self, t_s: float, initial: NavEstimate) -> None:

@@ -104,7 +104,8 @@ def build_vehicle(scn: Scenario, v: Vehicle, world: RunWorld, streams: RngStream
     # IMUs first at a tick, so the navigator predicts to the tick before it corrects.
     sensors.sort(key=lambda s: 0 if type(s.sensor).__name__.lower().startswith("imu") else 1)
 
-    navigator = registry.build("navigator", v.navigation.type, v.navigation.params, f"{base}.navigation", ctx=ctx_onboard)
+    navigator = registry.build("navigator", v.navigation.type, v.navigation.params, f"{base}.navigation",
+                               ctx=ctx_onboard, aircraft=dyn.aircraft_meta)
     by_name = {s.name: s.sensor for s in sensors}
     onboard = {"reference_map": world.reference_map, "reference_elevation": world.reference_elevation, "same_raster": world.same_raster}
     aids = [

@@ -12,9 +12,11 @@ from functools import lru_cache
 import numpy as np
 
 from testbench.core import geodesy
+from testbench.core.errors import InputError
+from testbench.core.units import STANDARD_GRAVITY_MPS2
 from testbench.core.interfaces import GeodeticOrigin
 from testbench.core.rotations import dcm_to_euler, skew, wrap_pi
-from testbench.navigation.ins.error_model import IA, IBB, IFX, IGN, IP, IV, N_STATES
+from testbench.navigation.ins.error_model import IA, IBA, IBB, IFX, IGN, IP, IV, N_STATES
 
 
 def gnss_position(ekf, lat_rad: float, lon_rad: float, alt_m: float, sigma_ned_m):
@@ -136,3 +138,40 @@ def mag_heading(ekf, field_b_T, field_ned_T, sigma_rad: float):
     H = np.zeros((1, N_STATES))
     H[0, IA] = yaw_jacobian(C)
     return y, H, np.array([[sigma_rad**2]])
+
+
+def momentum_drag_per_s(aircraft: dict) -> float:
+    """mu (1/s) of a multirotor's rotor (momentum) drag at hover from its sidecar: each rotor
+    adds -c omega_i v_perp (body x, y; c = rotor_drag_coefficient, N s/(m rad)), and at hover
+    omega = sqrt(m g / (n k_T)), so the body x, y specific force is -mu v_b with
+    mu = n c omega / m (tb_quad: 0.365 1/s, i.e. 1.46 m/s^2 at 4 m/s)."""
+    try:
+        m = float(aircraft["mass_kg"])
+        c = float(aircraft["rotor_drag_coefficient"])
+        k_t = float(aircraft["motor_thrust_constant"])
+        n = len(aircraft["motors"])
+    except (KeyError, TypeError):
+        raise InputError(
+            "navigation.params.drag_aiding: the aircraft's sidecar has no rotor drag model "
+            "(mass_kg, rotor_drag_coefficient, motor_thrust_constant, motors: a multirotor); "
+            "give drag_aiding.coefficient_per_s instead") from None
+    omega_hover = math.sqrt(m * STANDARD_GRAVITY_MPS2 / (n * k_t))
+    return n * c * omega_hover / m
+
+
+def drag_specific_force(ekf, f_b_xy_mps2, v_b_xy_mps, mu_per_s: float, sigma_mps2: float):
+    """Rotor-drag aiding: the accelerometers' body x, y specific force (2,) m/s^2, averaged
+    over an interval, against h = -mu v_b_xy + b_a_xy (calm air: air and ground velocity
+    agree), v_b_xy (2,) the nominal body velocity averaged over the same interval.
+
+    With C_true = (I + [phi x]) C_nb and v_true = v + dv: v_b_true = C^T v + C^T dv + C^T [v x] phi,
+    so H_v = -mu S C^T, H_phi = -mu S C^T [v x], H_ba = S (S: the body x and y rows)."""
+    C = ekf.C_nb
+    v = np.array(ekf.ins.vel)
+    y = np.asarray(f_b_xy_mps2, float) - (-mu_per_s * np.asarray(v_b_xy_mps, float) + ekf.b_a[:2])
+    H = np.zeros((2, N_STATES))
+    Ct = C.T[:2]
+    H[:, IV] = -mu_per_s * Ct
+    H[:, IA] = -mu_per_s * Ct @ skew(v)
+    H[:, IBA] = np.eye(3)[:2]
+    return y, H, np.eye(2) * sigma_mps2**2

@@ -71,6 +71,24 @@ class ImuNoiseParams(ParamsModel):
     accel_bias_tau_s: float = pydantic.Field(300.0, gt=0)
 
 
+class DragAiding(ParamsModel):
+    """Rotor-drag velocity aiding of a multirotor (the momentum-drag fusion of PX4's EKF2,
+    EKF2_DRAG_CTRL with EKF2_MCOEF). The rotors' in-plane drag makes the accelerometers' body
+    x and y specific force -mu times the body velocity, so in calm air the accelerometers
+    measure velocity, and the INS cannot drift in velocity (and, through it, in course) once
+    GNSS is gone. Fused every interval_s with the specific force and the nominal body velocity
+    averaged over the interval. Not for fixed wings (no such drag law), nor in wind (the
+    model gives air-relative velocity: this filter has no wind states), nor on the ground."""
+
+    coefficient_per_s: float | None = pydantic.Field(None, gt=0)
+    """mu (1/s); None: from the aircraft's sidecar at hover (measurements.momentum_drag_per_s)."""
+    interval_s: float = pydantic.Field(0.2, gt=0, le=1.0)
+    sigma_mps2: float = pydantic.Field(0.05, gt=0)
+    """Error of the averaged specific force against the model, per axis: mu changes with the
+    rotor speeds (+-5 % for +-10 % thrust), i.e. ~0.07 m/s^2 at 4 m/s in a manoeuvre, far less
+    in steady flight; the accelerometers' white noise over 0.2 s is a few mm/s^2."""
+
+
 class MeasurementSigmas(ParamsModel):
     """Measurement noise overrides; None uses the message's own figure or the default."""
 
@@ -152,8 +170,10 @@ class InsEkfNavigator(Navigator):
         use_mag: bool = True
         mag_mode: Literal["heading", "vector"] = "heading"
         use_position_fix: bool = True
+        drag_aiding: DragAiding | None = None
+        """Rotor-drag velocity aiding (multirotors in calm air; see DragAiding); None: off."""
 
-    def __init__(self, params: "InsEkfNavigator.Params", *, ctx: BuildContext):
+    def __init__(self, params: "InsEkfNavigator.Params", *, ctx: BuildContext, aircraft: dict | None = None, **_: object):
         self.params = params
         self.ctx = ctx
         try:
@@ -189,6 +209,11 @@ class InsEkfNavigator(Navigator):
         self._last_gnss_t = -math.inf
         self._last_fix_ok_t_s: float | None = None  # last accepted position fix (None: none yet)
         self._last_gnss_ok_t_s: float | None = None  # last accepted GNSS fix (None: none yet)
+        d = params.drag_aiding
+        self._drag_mu_per_s = None if d is None else (d.coefficient_per_s or meas.momentum_drag_per_s(aircraft or {}))
+        self._drag_acc = [0.0, 0.0, 0.0, 0.0, 0]  # sums over the interval: f_bx, f_by, v_bx, v_by; count
+        self._drag_t0_s: float | None = None
+        self.drag_counts = {"accepted": 0, "rejected": 0}
 
     # ----------------------------------------------------------- Navigator API
     def initialize(self, t_s: float, initial: NavEstimate) -> None:
@@ -228,6 +253,33 @@ class InsEkfNavigator(Navigator):
     def predict(self, imu: ImuSample) -> None:
         self._require_init()
         self.ekf.propagate(float(imu.t_s), imu.omega_ib_b_rps, imu.f_ib_b_mps2)
+        if self._drag_mu_per_s is not None:
+            self._accumulate_drag(float(imu.t_s), imu.f_ib_b_mps2)
+
+    def _accumulate_drag(self, t_s: float, f_ib_b_mps2) -> None:
+        """Sum the raw body x, y specific force and the nominal body x, y velocity; every
+        drag_aiding.interval_s fuse their means (measurements.drag_specific_force)."""
+        ins = self.ekf.ins
+        qw, qx, qy, qz = ins.q
+        vn, ve, vd = ins.vel
+        acc = self._drag_acc
+        acc[0] += float(f_ib_b_mps2[0])
+        acc[1] += float(f_ib_b_mps2[1])
+        # v_b = C_nb^T v: dot products with C_nb's first two columns (body x and y in NED).
+        acc[2] += (1 - 2 * (qy * qy + qz * qz)) * vn + 2 * (qx * qy + qw * qz) * ve + 2 * (qx * qz - qw * qy) * vd
+        acc[3] += 2 * (qx * qy - qw * qz) * vn + (1 - 2 * (qx * qx + qz * qz)) * ve + 2 * (qy * qz + qw * qx) * vd
+        acc[4] += 1
+        if self._drag_t0_s is None:
+            self._drag_t0_s = t_s
+        if t_s - self._drag_t0_s < self.params.drag_aiding.interval_s - 1e-9:
+            return
+        n = acc[4]
+        y, H, R = meas.drag_specific_force(self.ekf, (acc[0] / n, acc[1] / n), (acc[2] / n, acc[3] / n),
+                                           self._drag_mu_per_s, self.params.drag_aiding.sigma_mps2)
+        info = self.ekf.update("drag", t_s, y, H, R)
+        self.drag_counts["accepted" if info.accepted else "rejected"] += 1
+        self._drag_acc = [0.0, 0.0, 0.0, 0.0, 0]
+        self._drag_t0_s = None
 
     def correct(self, measurement) -> CorrectionInfo | None:
         self._require_init()

@@ -124,6 +124,8 @@ B_NED = np.array([17e-6, 1e-6, 52e-6])
         ("position_fix", lambda e: meas.position_ned(e, [3000.0, -2000.0, -900.0], np.eye(3) * 25, ORIGIN)),
         ("baro", lambda e: meas.baro_altitude(e, 1203.0, 1.0)),
         ("mag_vector", lambda e: meas.mag_vector(e, np.array([10e-6, 12e-6, 50e-6]), B_NED, 1e-7)),
+        # Rotor drag: the body velocity the residual uses is the (perturbed) nominal's own.
+        ("drag", lambda e: meas.drag_specific_force(e, [-1.2, 0.4], (e.C_nb.T @ np.array(e.ins.vel))[:2], 0.365, 0.05)),
     ],
 )
 def test_H_matches_finite_differences(name, model):
