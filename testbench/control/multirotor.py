@@ -109,7 +109,14 @@ class MultirotorController(Controller):
 
     Params: max_speed_mps (default: mission speed_mps, else sidecar cruise_airspeed_mps, else 5);
     max_climb_rate_mps; brake_accel_mps2 (speed-profile deceleration); corner_speed_mps (speed
-    at each intermediate waypoint); max_tilt_deg (default: sidecar max_bank_deg).
+    at each intermediate waypoint); max_tilt_deg (default: sidecar max_bank_deg);
+    accel_mps2: the commanded horizontal speed rises at most this fast (None: a step, limited
+    by the tilt alone); turn_rate_deg_s: fly-by corners, the commanded course turns at most
+    this fast and the next waypoint becomes active R tan(turn / 2) before the corner
+    (R = speed / rate), so the track is an arc tangent to both legs (None: fly over each
+    waypoint, then turn as fast as the loops allow). A formation leader needs both: its
+    followers see its speed and course only through their relative estimates, and a follower
+    r metres away must fly r times the turn rate faster than the leader to keep its slot.
     """
 
     class Params(ParamsModel):
@@ -118,6 +125,8 @@ class MultirotorController(Controller):
         brake_accel_mps2: float = pydantic.Field(default=1.5, gt=0.0)
         corner_speed_mps: float = pydantic.Field(default=1.0, ge=0.0)
         max_tilt_deg: float | None = pydantic.Field(default=None, gt=0.0, lt=60.0)
+        accel_mps2: float | None = pydantic.Field(default=None, gt=0.0)
+        turn_rate_deg_s: float | None = pydantic.Field(default=None, gt=0.0)
 
     def __init__(self, params: "MultirotorController.Params", *, ctx: BuildContext, mission, aircraft: dict, **_: object):
         self.params = params
@@ -157,6 +166,10 @@ class MultirotorController(Controller):
         self._brake_accel_mps2 = float(params.brake_accel_mps2)
         self._max_climb_rate_mps = float(params.max_climb_rate_mps)
         self._accel_h_max_mps2 = G * math.tan(self.max_tilt)  # tilt limit on horizontal acceleration
+        self._cmd_accel_mps2 = params.accel_mps2
+        self._turn_rate_rps = None if params.turn_rate_deg_s is None else params.turn_rate_deg_s * DEG_TO_RAD
+        self._v_shaped: tuple[float, float, float] | None = None  # last shaped command (accel/turn limits)
+        self._guidance_dt_s = 0.0
 
     # -- guidance ------------------------------------------------------------------------
 
@@ -174,7 +187,7 @@ class MultirotorController(Controller):
             self._prev_pt = target
             self.index = (self.index + 1) % len(self._waypoints_ned)
             return self._velocity_command(pos)
-        if not self.holding and dist < self.acceptance_m:
+        if not self.holding and (dist < self.acceptance_m or (not last and dist < self._flyby_distance_m())):
             if last:
                 self.holding = True
             else:
@@ -195,7 +208,39 @@ class MultirotorController(Controller):
         if h > self.max_speed:
             k = self.max_speed / h
             v = (v[0] * k, v[1] * k, v[2] * k)
-        return v
+        if self.holding:
+            self._v_shaped = v
+            return v
+        return self._shape(v)
+
+    def _flyby_distance_m(self) -> float:
+        """Distance before the active waypoint at which a fly-by turn starts (0 without a turn
+        rate): R tan(turn / 2), R = max_speed / turn rate, turn = the course change there."""
+        if self._turn_rate_rps is None or self.index + 1 >= len(self._waypoints_ned):
+            return 0.0
+        a = self._waypoints_ned[self.index]
+        b = self._waypoints_ned[self.index + 1]
+        p = self._prev_pt
+        turn = abs(_wrap_pi(math.atan2(b[1] - a[1], b[0] - a[0]) - math.atan2(a[1] - p[1], a[0] - p[0])))
+        return self.max_speed / self._turn_rate_rps * math.tan(0.5 * min(turn, math.radians(150.0)))
+
+    def _shape(self, v: tuple[float, float, float]) -> tuple[float, float, float]:
+        """The horizontal command within the speed-rise and turn-rate limits of this tick."""
+        prev = self._v_shaped
+        dt = self._guidance_dt_s
+        if prev is None or (self._cmd_accel_mps2 is None and self._turn_rate_rps is None):
+            self._v_shaped = v
+            return v
+        speed, prev_speed = math.hypot(v[0], v[1]), math.hypot(prev[0], prev[1])
+        if self._cmd_accel_mps2 is not None:
+            speed = min(speed, prev_speed + self._cmd_accel_mps2 * dt)
+        course = math.atan2(v[1], v[0])
+        if self._turn_rate_rps is not None and prev_speed > 0.5:
+            prev_course = math.atan2(prev[1], prev[0])
+            step = self._turn_rate_rps * dt
+            course = prev_course + _clip(_wrap_pi(course - prev_course), -step, step)
+        self._v_shaped = (speed * math.cos(course), speed * math.sin(course), v[2])
+        return self._v_shaped
 
     # -- control -------------------------------------------------------------------------
 
@@ -207,6 +252,9 @@ class MultirotorController(Controller):
         if self._prev_pt is None:
             self._prev_pt = tuple(pos)
             self._yaw_sp = yaw
+        self._guidance_dt_s = dt
+        if self._v_shaped is None:  # the shaped command starts from the present velocity
+            self._v_shaped = tuple(_floats(estimate.vel_ned_mps))
         v_cmd = self._velocity_command(pos)
         accel_cmd = self._velocity_loop(v_cmd, _floats(estimate.vel_ned_mps), dt)
         thrust, rpy_d = self._thrust_and_attitude(accel_cmd, roll, pitch, yaw)

@@ -93,3 +93,37 @@ def test_multirotor_hop_reaches_waypoints_without_overshoot():
     assert m["reach_max_m"] <= 1.0
     assert m["overshoot_max_m"] <= 3.0
     assert m["final_position_error_m"] < 0.5
+
+
+def test_multirotor_fly_by_turn_is_a_rate_limited_arc():
+    """With turn_rate_deg_s the course turns at most that fast, the turn starts R tan(turn/2)
+    before the corner (R = speed / rate), so the track passes the corner on the inside by about
+    R (1 / cos(turn/2) - 1) and needs no stop; accel_mps2 eases the start."""
+    from testbench.control.evaluate_multirotor import waypoint_mission
+    from testbench.control.multirotor import MultirotorController
+    from testbench.dynamics.jsbsim_adapter import InitialCondition
+
+    ctx = ev.make_context("q")
+    mission = waypoint_mission(ctx, points=[(120.0, 0.0), (240.0, 120.0)])  # a 45 deg right turn
+    dyn = ev.make_dynamics("tb_quad", physics_rate_hz=200.0)
+    truth = dyn.reset(InitialCondition(pos_ned_m=(0.0, 0.0, -100.0)))
+    params = MultirotorController.Params(max_speed_mps=5.0, corner_speed_mps=5.0, accel_mps2=0.5, turn_rate_deg_s=5.0)
+    ctl = MultirotorController(params, ctx=ctx, mission=mission, aircraft=dyn.aircraft_meta)
+    tr = ev.fly(dyn, ctl, 70.0, 100.0, truth, with_airspeed=False)
+    t = np.array(tr.t)
+    pos = np.array([x.pos_ned_m for x in tr.truth])
+    vel = np.array([x.vel_ned_mps for x in tr.truth])
+    speed = np.hypot(vel[:, 0], vel[:, 1])
+    # Eased start: about 0.5 m/s^2 (the loops lag the shaped command a little).
+    assert speed[t <= 4.0].max() < 2.5
+    course = np.unwrap(np.arctan2(vel[:, 1], vel[:, 0]))
+    moving = speed > 3.0
+    rate = np.gradient(course[moving], t[moving])
+    assert np.degrees(np.abs(rate)).max() < 5.0 * 1.3
+    R = 5.0 / math.radians(5.0)
+    inside = R * (1.0 / math.cos(math.radians(22.5)) - 1.0)  # 4.7 m
+    d_corner = np.hypot(pos[:, 0] - 120.0, pos[:, 1]).min()
+    assert 0.5 * inside < d_corner < 2.0 * inside
+    far_from_end = np.hypot(pos[:, 0] - 240.0, pos[:, 1] - 120.0) > 20.0  # before braking for the end
+    assert speed[(t > 15.0) & far_from_end].min() > 4.5  # no stop at the corner
+    assert np.hypot(pos[-1, 0] - 240.0, pos[-1, 1] - 120.0) < 1.0
