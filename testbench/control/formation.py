@@ -13,9 +13,17 @@ Consensus law (over fresh neighbours j with weights a_j, leader weight configura
   e = sum_j a_j [r_j - R(chi) (s_j - s_self)] / sum_j a_j          (slot error, NED, m)
 (j over the neighbours ahead, see ahead_only)
   v_ff = low-pass of sum_j a_j v_j / sum_j a_j                       (velocity feed-forward)
-  v_cmd = v_ff + k_slot e + sum_{j: |r_j| < margin} k_rep (|r_j| - margin) r_j / |r_j|
+  v_rot = omega z x sum_j a_j R(chi) (s_self - s_j)                   (the slot's turn)
+  v_cmd = v_ff + tau_ff a_ff + v_rot + k_slot e + sum_{j: |r_j| < margin} k_rep (|r_j| - margin) r_j / |r_j|
+(a_ff the low-passed rate of v_ff; chi in R(chi) likewise carried forward by omega times its
+filter's time constant: the low-passes must smooth the estimates, not delay them)
+omega is the low-passed rate of chi: while the formation turns, a slot d metres from the
+neighbours followed moves omega d faster than they do (without v_rot a follower 300 m out lags
+its slot by omega d / k_slot, 6.5 m at 0.5 deg/s).
 then slew-limited to max_accel_mps2 (a jump of an estimate must not become a 40 degree tilt:
 the vehicle's own cameras would lose their tracks, and its attitude errors enter the bearings).
+The course chi: from the layout of the followed neighbours when they are spread enough
+(geometry_course), else from their low-passed velocity.
 "Fresh" neighbours: estimates younger than max_age_s whose 1-sigma position uncertainty is
 below max_sigma_m (an estimate held by ranges alone drifts across the line of sight).
 With nobody fresh in sight it holds its last course and speed at its last altitude.
@@ -52,6 +60,29 @@ def formation_rotation(course_rad: float) -> np.ndarray:
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
+def geometry_course(neighbours, slots: dict, min_spread_m: float) -> float | None:
+    """The formation's course chi (rad) from the layout of the neighbours we estimate: the 2-D
+    rotation that best maps their slots (forward, right; about their mean) onto their estimated
+    relative positions (north, east; about their mean), a Procrustes fit: chi = atan2(sum a x b,
+    sum a . b). None with fewer than two neighbours or slots spread less than min_spread_m (RMS).
+
+    In a turn the formation pivots about the leader, so the rows behind it do not fly the
+    leader's course (the back row of a 300 m arrowhead turning right at 0.5 deg/s moves 40 deg
+    left of it); their neighbours' velocities then point the wrong way, their layout does not.
+    Our own position does not enter (it is what the slot law corrects)."""
+    if len(neighbours) < 2:
+        return None
+    a = np.array([slots[e.peer_id][:2] for e in neighbours], float)
+    b = np.array([np.asarray(e.pos_ned_m, float)[:2] for e in neighbours])
+    a -= a.mean(axis=0)
+    b -= b.mean(axis=0)
+    if math.sqrt(float((a * a).sum()) / len(a)) < min_spread_m:
+        return None
+    cross = float((a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]).sum())
+    dot = float((a * b).sum())
+    return math.atan2(cross, dot)
+
+
 def formation_errors(pos_ned_by_id: dict[str, np.ndarray], course_rad: float, slots: dict[str, Any],
                      leader_id: str) -> dict[str, np.ndarray]:
     """Slot error (NED, m) of every vehicle relative to the leader: p_k - p_leader - R(chi)
@@ -65,7 +96,14 @@ def formation_errors(pos_ned_by_id: dict[str, np.ndarray], course_rad: float, sl
 class FormationParams(ParamsModel):
     """slots: id -> (forward_m, right_m, down_m) in the formation frame (own id required);
     leader_id, leader_weight: weight of the leader's term (others 1); k_slot (1/s): slot gain;
-    ff_tau_s: low-pass time constant of the velocity feed-forward; course_min_speed_mps: below
+    ff_tau_s: low-pass time constant of the velocity feed-forward (seconds, not less: v_j is
+    our own velocity plus a relative velocity the neighbour filter estimates with a lag, so a
+    fast feed-forward feeds our own velocity back through that lag; with 1 s the back rows of
+    the arrowhead swung 20-60 m about their slots); course_rate_tau_s: that of the course rate
+    omega (v_rot; 0 leaves v_rot out), clamped to max_course_rate_deg_s;
+    min_geometry_spread_m: the followed neighbours' slots must spread this far (RMS about their
+    mean) for their layout to give the course (geometry_course), low-passed with
+    geometry_tau_s; course_min_speed_mps: below
     this the course is held; margin_m, k_repulse (1/s): collision-avoidance margin and gain;
     max_age_s, max_sigma_m: estimates older or more uncertain (sqrt trace of the position
     covariance) than this are ignored; max_speed_mps, max_climb_rate_mps; max_accel_mps2: slew
@@ -77,7 +115,11 @@ class FormationParams(ParamsModel):
     leader_id: str | None = None
     leader_weight: float = pydantic.Field(2.0, gt=0)
     k_slot: float = pydantic.Field(0.4, gt=0)
-    ff_tau_s: float = pydantic.Field(1.0, ge=0)
+    ff_tau_s: float = pydantic.Field(4.0, ge=0)
+    course_rate_tau_s: float = pydantic.Field(4.0, ge=0)
+    max_course_rate_deg_s: float = pydantic.Field(2.0, gt=0)
+    min_geometry_spread_m: float = pydantic.Field(30.0, gt=0)
+    geometry_tau_s: float = pydantic.Field(2.0, ge=0)
     course_min_speed_mps: float = pydantic.Field(1.0, ge=0)
     margin_m: float = pydantic.Field(15.0, ge=0)
     k_repulse: float = pydantic.Field(0.5, ge=0)
@@ -99,6 +141,10 @@ class FormationLaw:
         self.self_id = self_id
         self.s_self = np.asarray(p.slots[self_id], float)
         self.course: float | None = None
+        self.course_rate_rps = 0.0
+        self.course_lead: float | None = None  # course carried forward by its filter's lag
+        self._course_lag_s = 0.0
+        self.accel_ff = np.zeros(3)
         self.v_ff: np.ndarray | None = None
         self.hold_alt_down_m: float | None = None
         self.t_prev: float | None = None
@@ -113,7 +159,7 @@ class FormationLaw:
         dt = 0.0 if self.t_prev is None else max(t_s - self.t_prev, 0.0)
         self.t_prev = t_s
         if self.course is None:
-            self.course = float(est.rpy_rad[2])
+            self.course = self.course_lead = float(est.rpy_rad[2])
             self.v_ff = np.array([vel[0], vel[1], 0.0])
         if self.v_out is None:
             self.v_out = vel.copy()
@@ -136,14 +182,40 @@ class FormationLaw:
         v_nb = np.array([vel + np.asarray(e.vel_ned_mps, float) for e in fresh])
         v_mean = w @ v_nb
         a = 1.0 if p.ff_tau_s <= 0 else min(1.0, dt / p.ff_tau_s)
-        self.v_ff = self.v_ff + a * (v_mean - self.v_ff)
-        if math.hypot(self.v_ff[0], self.v_ff[1]) >= p.course_min_speed_mps:
-            self.course = math.atan2(self.v_ff[1], self.v_ff[0])
-        R = formation_rotation(self.course)
-        e = sum(wi * (np.asarray(en.pos_ned_m, float) - R @ (np.asarray(p.slots[en.peer_id], float) - self.s_self))
-                for wi, en in zip(w, fresh))
+        dv_ff = a * (v_mean - self.v_ff)
+        self.v_ff = self.v_ff + dv_ff
+        b = min(1.0, dt / p.course_rate_tau_s) if p.course_rate_tau_s > 0 else 0.0
+        if dt > 0:
+            self.accel_ff = self.accel_ff + b * (dv_ff / dt - self.accel_ff)
+        course = None
+        geo = geometry_course(fresh, p.slots, p.min_geometry_spread_m)
+        if geo is not None:
+            # The followed neighbours' layout gives the formation's orientation directly.
+            g = min(1.0, dt / p.geometry_tau_s) if p.geometry_tau_s > 0 else 1.0
+            course = self.course + g * wrap_pi(geo - self.course)
+            self._course_lag_s = p.geometry_tau_s
+        elif math.hypot(self.v_ff[0], self.v_ff[1]) >= p.course_min_speed_mps:
+            course = math.atan2(self.v_ff[1], self.v_ff[0])
+            self._course_lag_s = p.ff_tau_s
+        if course is not None:
+            if dt > 0 and b > 0:
+                rate = wrap_pi(course - self.course) / dt
+                self.course_rate_rps += b * (rate - self.course_rate_rps)
+            self.course = course
+        om_max = math.radians(p.max_course_rate_deg_s)
+        om = float(np.clip(self.course_rate_rps, -om_max, om_max)) if p.course_rate_tau_s > 0 else 0.0
+        # Lead: a first-order low-pass lags a ramp by its time constant (2 deg of course at
+        # 0.5 deg/s through 4 s, 3.5 m at 100 m), so the filtered course and velocity are carried
+        # forward by their estimated rates times that lag.
+        self.course_lead = self.course + om * self._course_lag_s
+        v_lead = self.v_ff + (p.ff_tau_s * self.accel_ff if p.course_rate_tau_s > 0 else 0.0)
+        R = formation_rotation(self.course_lead)
+        # Offsets of our slot from the followed neighbours' slots, in NED (weighted).
+        d_slot = sum(wi * (R @ (self.s_self - np.asarray(p.slots[en.peer_id], float))) for wi, en in zip(w, fresh))
+        e = sum(wi * np.asarray(en.pos_ned_m, float) for wi, en in zip(w, fresh)) + d_slot
         self.error_ned_m = np.asarray(e, float)
-        v = self.v_ff + p.k_slot * self.error_ned_m
+        v_rot = np.array([-om * d_slot[1], om * d_slot[0], 0.0])  # omega z x d (z down: course rate > 0 turns right)
+        v = v_lead + v_rot + p.k_slot * self.error_ned_m
         for en in fresh:
             r = np.asarray(en.pos_ned_m, float)
             d = float(np.linalg.norm(r))
@@ -220,10 +292,10 @@ class FormationFollower(MultirotorController):
             self._prev_pt = np.asarray(estimate.pos_ned_m, float).copy()
         # Nose toward the formation course, turning at most max_yaw_rate (smooth for the cameras).
         if self._yaw_sp is None or self._t_yaw is None:
-            self._yaw_sp = self.law.course
+            self._yaw_sp = self.law.course_lead
         else:
             step = self._max_yaw_rate * max(t_s - self._t_yaw, 0.0)
-            self._yaw_sp = wrap_pi(self._yaw_sp + float(np.clip(wrap_pi(self.law.course - self._yaw_sp), -step, step)))
+            self._yaw_sp = wrap_pi(self._yaw_sp + float(np.clip(wrap_pi(self.law.course_lead - self._yaw_sp), -step, step)))
         self._t_yaw = t_s
         cmd = super().update(t_s, estimate, reference)
         # Built only when asked (at the record rate), like the cascade's own status.

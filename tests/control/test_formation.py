@@ -165,3 +165,20 @@ def test_fixed_wing_follower_converges_on_a_straight_leg():
         course = math.atan2(tl.vel_ned_mps[1], tl.vel_ned_mps[0])
         errs.append(np.linalg.norm(formation_errors({"lead": tl.pos_ned_m, "f1": tf.pos_ned_m}, course, slots, "lead")["f1"]))
     assert errs[0] > 20.0 and max(errs[-500:]) < 2.0
+
+
+def test_geometry_course_recovers_the_formations_orientation():
+    """The Procrustes fit of the followed neighbours' slots onto their estimated relative
+    positions gives the formation course, wherever we are ourselves (our offset cancels)."""
+    from testbench.control.formation import formation_rotation, geometry_course
+
+    slots = {"a": (0.0, 0.0, 0.0), "b": (-86.6, -50.0, 0.0), "c": (-86.6, 50.0, 0.0), "me": (-173.2, 0.0, 0.0)}
+    rng = np.random.default_rng(0)
+    for chi in np.radians([0.0, 25.0, -140.0, 179.0]):
+        R = formation_rotation(chi)
+        own_error = np.array([7.0, -4.0, 0.0])  # we are off our slot: must not matter
+        nbs = [_rel(k, R @ (np.asarray(slots[k]) - slots["me"]) - own_error + rng.normal(0, 0.3, 3)) for k in "abc"]
+        got = geometry_course(nbs, slots, 30.0)
+        assert abs(math.remainder(got - chi, 2 * math.pi)) < math.radians(0.5)
+    assert geometry_course(nbs[:1], slots, 30.0) is None  # one neighbour: no orientation
+    assert geometry_course(nbs[1:], slots, 80.0) is None  # b, c spread 50 m RMS < 80

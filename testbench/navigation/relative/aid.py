@@ -94,7 +94,8 @@ class RelnavAid(NavigationAid):
     that neighbour's estimate is settled: sigma below assoc_max_sigma_m), reset_after_rejects
     (a neighbour whose bearings were rejected this many times in a row, or whose ranges were
     rejected filter.max_consecutive_rejects times in a row, restarts from the next bearing of a
-    track with a decoded ID and the median of the recent ranges),
+    track with a decoded ID and the median of the recent ranges; on bearings alone only once
+    none has been accepted for reset_bearing_after_s),
     log_rate_hz (rows of table "relnav"), led_reader (params of the LED detector that reads
     the blink level inside boxes from detectors without LED output, e.g. the CNN), seed (oracle noise when no rng is injected), roi,
     filter, tracker.
@@ -113,6 +114,7 @@ class RelnavAid(NavigationAid):
         predicted_association: bool = True
         assoc_max_sigma_m: float = pydantic.Field(1.0, gt=0)
         reset_after_rejects: int = pydantic.Field(5, ge=1)
+        reset_bearing_after_s: float = pydantic.Field(3.0, ge=0)
         log_rate_hz: float = pydantic.Field(2.0, gt=0)
         led_reader: dict = {}
         seed: int = 0
@@ -191,7 +193,7 @@ class RelnavAid(NavigationAid):
         if f is not None:
             # One installation on every vehicle, peer attitude taken equal to ours: the antenna
             # lever arms cancel (lever_diff = R_nb (l_peer - l_self) = 0).
-            f.update_range(m.t_s, m.range_m, np.zeros(3))
+            f.update_range(m.t_s, m.range_m, np.zeros(3), est.vel_ned_mps)
 
     # -- cameras ---------------------------------------------------------------------------
 
@@ -248,8 +250,15 @@ class RelnavAid(NavigationAid):
             if tr.id_index is not None:
                 self.id_conf[peer] = tr.id_confidence
             f = self.filters.get(peer)
+            # Bearings alone that disagree while the ranges still agree are more often a track
+            # whose decoded ID is stale (two neighbours crossed in the image and their tracks
+            # swapped; the decoder needs about half a code cycle of new chips to notice) than a
+            # lost filter: a restart from such a track put the neighbour on the other one's line
+            # of sight, 20-40 m off with a sigma of 0.4 m. So bearings must have disagreed for
+            # reset_bearing_after_s first.
             if f is not None and tr.id_index is not None and (
-                    f.consecutive_bearing_rejects >= self.params.reset_after_rejects
+                    (f.consecutive_bearing_rejects >= self.params.reset_after_rejects
+                     and t - f.last_bearing_t_s >= self.params.reset_bearing_after_s)
                     or f.consecutive_rejects >= self.fset.max_consecutive_rejects):
                 self.counters["filter_resets"] += 1
                 f = None  # the estimate lost its neighbour: restart from an identified bearing
@@ -257,7 +266,7 @@ class RelnavAid(NavigationAid):
                 f = self._start_filter(peer, t, cam, mount, R_nb, det.centre_px, att_sigma)
                 if f is None:
                     continue
-            _, ok = f.update_bearing(t, m_xy, R_nc, c_off, focal, att_sigma)
+            _, ok = f.update_bearing(t, m_xy, R_nc, c_off, focal, att_sigma, est.vel_ned_mps)
             self.counters["bearings_used"] += int(ok)
             if ok and truth_id is not None:
                 self.bearing_id_ok[peer] = float(truth_id == peer)

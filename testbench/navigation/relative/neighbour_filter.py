@@ -1,9 +1,14 @@
 """Per-neighbour EKF on relative position and velocity (NED), fusing camera bearings and UWB
 ranges over time.
 
-State x = [r (3), w (3)]: r = p_peer - p_self (m, NED), w = dr/dt (m/s). Process: constant
-relative velocity with white relative acceleration of spectral density sigma_accel^2 per axis
-(covers the manoeuvres of both vehicles). Measurements:
+State x = [r (3), w (3)]: r = p_peer - p_self (m, NED), w = dr/dt (m/s). Process: the peer's
+velocity is a random walk (white acceleration of spectral density sigma_accel^2 per axis: its
+manoeuvres); our OWN velocity change over a prediction step, dv_self from our own estimate
+(when the caller gives it), is known and taken out: w <- w - dv_self and r advances by
+(w - dv_self / 2) dt (our velocity taken to change evenly over the step).
+Without it our own manoeuvres would have to hide in sigma_accel too, and a follower swinging
+at 2 m/s^2 while its bearings were stale carried its neighbours' estimates 10 m away with a
+claimed sigma of 1 m. Measurements:
 - bearing: normalised image coordinates m = (d_x/d_z, d_y/d_z) of d = R_nc^T (r - c), c the
   camera centre offset R_nb l_cam (NED), R_nc = R_nb R_bc with the OWN ESTIMATED attitude; noise
   (sigma_px / f)^2 plus the attitude uncertainty mapped through (1 + m^2);
@@ -20,6 +25,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.stats import chi2
+
+
+_EVEN_CHANGE_MAX_S = 0.3  # steps longer than this get the own-displacement uncertainty in Q
 
 
 @dataclass(frozen=True)
@@ -60,9 +68,22 @@ class NeighbourFilter:
                          "bearing_accepted": 0, "bearing_rejected": 0}
         self.last_bearing_t_s = -np.inf
         self.last_range_t_s = -np.inf
+        self.v_self: np.ndarray | None = None  # own velocity (NED m/s) at t_s, when known
 
-    def predict(self, t_s: float) -> None:
+    def predict(self, t_s: float, v_self_ned_mps=None) -> None:
+        """Advance to t_s; v_self_ned_mps (3,): our own estimated velocity at t_s, whose change
+        since the last step is our own acceleration (known, taken out of w)."""
         dt = float(t_s) - self.t_s
+        dv = None
+        if v_self_ned_mps is not None and (self.v_self is None or dt > 0):
+            v = np.asarray(v_self_ned_mps, float)
+            if self.v_self is not None:
+                dv = v - self.v_self
+                # Our velocity taken to change evenly over the step: the mean relative velocity
+                # is w - dv / 2, and F below moves r with the new w - dv.
+                self.x[3:] -= dv
+                self.x[:3] += 0.5 * dt * dv
+            self.v_self = v.copy()
         if dt <= 0:
             return
         F = np.eye(6)
@@ -72,6 +93,10 @@ class NeighbourFilter:
         Q[:3, :3] = np.eye(3) * q * dt**3 / 3
         Q[:3, 3:] = Q[3:, :3] = np.eye(3) * q * dt**2 / 2
         Q[3:, 3:] = np.eye(3) * q * dt
+        if dv is not None and dt > _EVEN_CHANGE_MAX_S:
+            # Over a long gap our velocity did not change evenly (a follower swinging about its
+            # slot): the displacement dv dt / 2 is uncertain by as much again.
+            Q[:3, :3] += np.diag((0.5 * dt * dv) ** 2)
         self.x = F @ self.x
         self.P = F @ self.P @ F.T + Q
         self.t_s = float(t_s)
@@ -97,10 +122,11 @@ class NeighbourFilter:
         return h, H
 
     def update_bearing(self, t_s: float, m_xy, R_nc: np.ndarray, cam_offset_ned_m, focal_px: float,
-                       att_sigma_rad: float = 0.0) -> tuple[float, bool]:
+                       att_sigma_rad: float = 0.0, v_self_ned_mps=None) -> tuple[float, bool]:
         """Fuse normalised image coordinates m_xy (2,) seen by a camera with attitude R_nc
-        (camera -> NED, own estimate) and centre offset cam_offset_ned_m. Returns (NIS, accepted)."""
-        self.predict(t_s)
+        (camera -> NED, own estimate) and centre offset cam_offset_ned_m; v_self_ned_mps: our
+        own velocity estimate at t_s (see predict). Returns (NIS, accepted)."""
+        self.predict(t_s, v_self_ned_mps)
         m = np.asarray(m_xy, float)
         h, H = self.bearing_model(R_nc, cam_offset_ned_m)
         d = (self.x[:3] - cam_offset_ned_m) @ R_nc
@@ -123,9 +149,11 @@ class NeighbourFilter:
         self.last_bearing_t_s = float(t_s)
         return nis, True
 
-    def update_range(self, t_s: float, range_m: float, lever_diff_ned_m=(0.0, 0.0, 0.0)) -> tuple[float, bool]:
-        """Fuse one UWB range; lever_diff_ned_m = R_nb (l_peer - l_self). Returns (NIS, accepted)."""
-        self.predict(t_s)
+    def update_range(self, t_s: float, range_m: float, lever_diff_ned_m=(0.0, 0.0, 0.0),
+                     v_self_ned_mps=None) -> tuple[float, bool]:
+        """Fuse one UWB range; lever_diff_ned_m = R_nb (l_peer - l_self); v_self_ned_mps as in
+        predict. Returns (NIS, accepted)."""
+        self.predict(t_s, v_self_ned_mps)
         a = self.x[:3] + np.asarray(lever_diff_ned_m, float)
         n = float(np.linalg.norm(a))
         if n < 1e-6:

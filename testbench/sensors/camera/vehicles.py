@@ -117,15 +117,24 @@ def draw_vehicles(img: np.ndarray, camera: PinholeCamera, roi_origin: tuple[int,
     rh, rw = img.shape[:2]
     items = []  # (depth, kind, payload)
     truths = []
+    # One projection for every vehicle's vertices, centre and LEDs (body -> NED with its R_nb):
+    # a projectPoints call per vehicle cost more than the drawing in a ten-vehicle swarm.
+    shapes, blocks = [], []
     for veh in vehicles:
         p = np.asarray(veh.pos_ned_m, float)
         R_nb = np.asarray(veh.R_nb, float)
-        verts_b, slices, centroids_b, normals_b, shades, one_sided = shape_arrays(veh.shape, float(veh.size_m))
+        shape = shape_arrays(veh.shape, float(veh.size_m))
         leds_b = np.asarray(veh.led_positions_b_m, float).reshape(-1, 3)
-        n_v, n_l = len(verts_b), len(leds_b)
-        # One projection for the vertices, the centre and the LEDs (body -> NED with R_nb).
-        pts_n = p + np.vstack([verts_b, np.zeros((1, 3)), leds_b]) @ R_nb.T
-        uv_all, z_all = project_points(camera, C, R_nc, pts_n)
+        shapes.append((p, R_nb, shape, len(leds_b)))
+        blocks.append(p + np.vstack([shape[0], np.zeros((1, 3)), leds_b]) @ R_nb.T)
+    if blocks:
+        uv_every, z_every = project_points(camera, C, R_nc, np.vstack(blocks))
+    start = 0
+    for veh, (p, R_nb, shape, n_l), block in zip(vehicles, shapes, blocks):
+        verts_b, slices, centroids_b, normals_b, shades, one_sided = shape
+        n_v = len(verts_b)
+        uv_all, z_all = uv_every[start:start + len(block)], z_every[start:start + len(block)]
+        start += len(block)
         uv, z = uv_all[:n_v], z_all[:n_v]
         centre_uv, centre_z = uv_all[n_v], z_all[n_v]
         led_uv, led_z = uv_all[n_v + 1:], z_all[n_v + 1:]

@@ -103,3 +103,22 @@ def test_oracle_is_deterministic_under_seed():
     a = [d.centre_px for d in OracleDetector(p, rng=np.random.default_rng(9)).detect_region(img, (0, 0), truths)]
     b = [d.centre_px for d in OracleDetector(p, rng=np.random.default_rng(9)).detect_region(img, (0, 0), truths)]
     assert a == b
+
+
+def test_own_acceleration_is_taken_out_of_the_prediction():
+    """We accelerate at 2 m/s^2 for 3 s past a hovering neighbour: with our own velocity given
+    at each step the predicted relative position stays on the truth (it moved 9 m) without any
+    measurement; without it the constant-relative-velocity model is 9 m off."""
+    r0 = np.array([80.0, 30.0, 0.0])
+    a = np.array([2.0, 0.0, 0.0])
+    with_v = NeighbourFilter(0.0, r0, np.eye(3) * 0.01, FilterSettings(init_vel_sigma_mps=0.1))
+    without = NeighbourFilter(0.0, r0, np.eye(3) * 0.01, FilterSettings(init_vel_sigma_mps=0.1))
+    with_v.predict(0.0, np.zeros(3))
+    for k in range(1, 31):
+        t = 0.1 * k
+        with_v.predict(t, a * t)
+        without.predict(t)
+    truth = r0 - 0.5 * a * 3.0**2
+    assert np.linalg.norm(with_v.x[:3] - truth) < 0.05
+    assert np.allclose(with_v.x[3:], -a * 3.0)  # relative velocity: minus ours
+    assert np.linalg.norm(without.x[:3] - truth) > 8.0
