@@ -86,7 +86,7 @@ class RelnavAid(NavigationAid):
     detector's centre lies on a neighbour relative to its CG, its body axes: e.g. the LED
     centroid; rotated with our own attitude, the neighbour's being unknown), led_rate_hz (default: the
     first camera's rate), range_max_age_s (a range this recent may start a filter with a
-    bearing), stale_after_s (a neighbour with no update for this long is forgotten),
+    bearing), stale_after_s (a neighbour with no bearing fused for this long is forgotten),
     report_max_age_s (the NeighbourTable holds only neighbours with both a bearing and a range
     fused within this age: with one of them missing the estimate drifts along the unobserved
     direction, e.g. along the line of sight beyond UWB range),
@@ -163,7 +163,7 @@ class RelnavAid(NavigationAid):
         self.last_estimate: NavEstimate | None = None
         self.t_s = 0.0
         self._next_log_t = 0.0
-        self.counters = {"frames": 0, "detections": 0, "id_checks": 0, "id_wrong": 0, "bearings_used": 0, "predicted_assoc": 0,
+        self.counters = {"frames": 0, "detections": 0, "id_checks": 0, "id_wrong": 0, "bearings_used": 0, "predicted_assoc": 0, "restarts_refused": 0,
                          "filter_resets": 0}
 
     # -- NavigationAid ---------------------------------------------------------------------
@@ -263,6 +263,12 @@ class RelnavAid(NavigationAid):
                 self.counters["filter_resets"] += 1
                 f = None  # the estimate lost its neighbour: restart from an identified bearing
             if f is None:
+                # A track whose bearing is where another neighbour's healthy estimate predicts
+                # one is most likely that neighbour under a stale ID: do not (re)start from it.
+                if any(self._bearing_gates(g, t, m_xy, R_nc, c_off, focal, att_sigma)
+                       for other, g in self.filters.items() if other != peer and t - g.last_bearing_t_s < 1.0):
+                    self.counters["restarts_refused"] += 1
+                    continue
                 f = self._start_filter(peer, t, cam, mount, R_nb, det.centre_px, att_sigma)
                 if f is None:
                     continue
@@ -309,30 +315,36 @@ class RelnavAid(NavigationAid):
 
     def _predicted_peer(self, t, m_xy, R_nc, c_off, focal, att_sigma, claimed) -> str | None:
         """The one neighbour whose predicted line of sight gates with this bearing, if unique."""
-        hits = []
-        R = np.eye(2) * ((self.fset.bearing_sigma_px / focal) ** 2 + att_sigma**2)
-        for peer, f in self.filters.items():
-            if peer in claimed or f.counters["bearing_accepted"] < 10:
-                continue
-            dt = max(t - f.t_s, 0.0)
-            x = f.x[:3] + dt * f.x[3:]
-            P = f.P[:3, :3] + dt * (f.P[:3, 3:] + f.P[3:, :3]) + dt * dt * f.P[3:, 3:]
-            if np.sqrt(max(np.trace(P), 0.0)) > self.params.assoc_max_sigma_m:
-                continue
-            d = (x - c_off) @ R_nc
-            if d[2] <= 0.2 * np.linalg.norm(d):
-                continue  # not in front of this camera
-            h, H = f.bearing_model(R_nc, c_off)
-            S = H @ f.P @ H.T + R
-            y = m_xy - np.array([d[0] / d[2], d[1] / d[2]])
-            if float(y @ np.linalg.solve(S, y)) <= f.gate2:
-                hits.append(peer)
+        hits = [peer for peer, f in self.filters.items()
+                if peer not in claimed and self._bearing_gates(f, t, m_xy, R_nc, c_off, focal, att_sigma)]
         return hits[0] if len(hits) == 1 else None
 
+    def _bearing_gates(self, f: NeighbourFilter, t, m_xy, R_nc, c_off, focal, att_sigma) -> bool:
+        """Whether a settled filter (10 bearings fused, position sigma below assoc_max_sigma_m)
+        predicts this bearing (normalised image coordinates m_xy) within its gate."""
+        if f.counters["bearing_accepted"] < 10:
+            return False
+        dt = max(t - f.t_s, 0.0)
+        x = f.x[:3] + dt * f.x[3:]
+        P = f.P[:3, :3] + dt * (f.P[:3, 3:] + f.P[3:, :3]) + dt * dt * f.P[3:, 3:]
+        if np.sqrt(max(np.trace(P), 0.0)) > self.params.assoc_max_sigma_m:
+            return False
+        d = (x - c_off) @ R_nc
+        if d[2] <= 0.2 * np.linalg.norm(d):
+            return False  # not in front of this camera
+        R = np.eye(2) * ((self.fset.bearing_sigma_px / focal) ** 2 + att_sigma**2)
+        h, H = f.bearing_model(R_nc, c_off)
+        S = H @ f.P @ H.T + R
+        y = m_xy - np.array([d[0] / d[2], d[1] / d[2]])
+        return float(y @ np.linalg.solve(S, y)) <= f.gate2
+
     def _drop_stale(self, t: float) -> None:
-        for peer in [p for p, f in self.filters.items()
-                     if t - max(f.last_bearing_t_s, f.last_range_t_s, -1e9) > self.params.stale_after_s
-                     and t - f.t_s > self.params.stale_after_s]:
+        """Forget neighbours without a bearing for stale_after_s. Ranges alone keep only the
+        distance: the direction drifts over the range sphere (one estimate went from behind to
+        in front of us in 47 s of ranges), and the filter's wide tangential covariance then
+        accepts the first bearing of any track claiming that ID. A forgotten neighbour is
+        restarted from an identified track (with the check against the other neighbours)."""
+        for peer in [p for p, f in self.filters.items() if t - f.last_bearing_t_s > self.params.stale_after_s]:
             del self.filters[peer]
 
     def _attitude_at(self, t: float) -> np.ndarray | None:

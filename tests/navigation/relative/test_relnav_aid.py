@@ -62,3 +62,28 @@ def test_box_only_detector_gets_led_levels_read_in_its_boxes(monkeypatch):
     res = simulate_relnav(OFFSETS[:2], duration_s=3.5, width_px=960, height_px=540, cameras=("front", "right"),
                           aid_params={"led_reader": {"data_hue_deg": 0.0}})
     assert sorted(res.table) == ["n0", "n1"] and res.counters["id_wrong"] == 0
+
+
+def test_a_neighbour_held_by_ranges_alone_is_forgotten():
+    """Ranges keep only the distance: a neighbour without a bearing for stale_after_s is
+    dropped even while its ranges keep arriving (its direction is no longer known), and the next
+    identified track restarts it."""
+    from testbench.core.interfaces import BuildContext
+    from testbench.core.messages import UwbRange
+    from testbench.navigation.relative.aid import RelnavAid
+    from testbench.navigation.relative.bench import ORIGIN, _Camera, _Uwb, _estimate
+    from testbench.navigation.relative.neighbour_filter import NeighbourFilter
+    from testbench.core.camera_geometry import CameraMount, PinholeCamera, mount_rotation
+
+    cam = PinholeCamera.from_hfov(640, 360, 120.0)
+    sensors = {"front": _Camera(cam, CameraMount(mount_rotation(0.0, 0.0, 0.0), np.zeros(3))), "uwb": _Uwb()}
+    aid = RelnavAid(RelnavAid.Params(cameras=["front"], detector={"type": "oracle"}, stale_after_s=5.0),
+                    ctx=BuildContext("self", ("self", "n0"), ORIGIN), sensors=sensors, rng=np.random.default_rng(0))
+    f = NeighbourFilter(0.0, [50.0, 0.0, 0.0], np.eye(3))
+    f.last_bearing_t_s = 0.0
+    aid.filters["n0"] = f
+    est = _estimate(0.0, np.zeros(3), np.random.default_rng(0), 0.0)
+    for k in range(1, 61):  # 6 s of ranges, no bearing
+        aid.process(UwbRange(0.1 * k, "n0", 50.0, -80.0), est)
+    aid._drop_stale(6.0)
+    assert "n0" not in aid.filters
