@@ -114,7 +114,9 @@ class MultirotorController(Controller):
     by the tilt alone); turn_rate_deg_s: fly-by corners, the commanded course turns at most
     this fast and the next waypoint becomes active R tan(turn / 2) before the corner
     (R = speed / rate), so the track is an arc tangent to both legs (None: fly over each
-    waypoint, then turn as fast as the loops allow). A formation leader needs both: its
+    waypoint, then turn as fast as the loops allow); turn_accel_deg_s2: with turn_rate_deg_s,
+    the turn rate itself changes at most this fast (a rolled-in, rolled-out arc; the turn then
+    starts that much earlier). A formation leader needs all three: its
     followers see its speed and course only through their relative estimates, and a follower
     r metres away must fly r times the turn rate faster than the leader to keep its slot.
     """
@@ -127,6 +129,7 @@ class MultirotorController(Controller):
         max_tilt_deg: float | None = pydantic.Field(default=None, gt=0.0, lt=60.0)
         accel_mps2: float | None = pydantic.Field(default=None, gt=0.0)
         turn_rate_deg_s: float | None = pydantic.Field(default=None, gt=0.0)
+        turn_accel_deg_s2: float | None = pydantic.Field(default=None, gt=0.0)
 
     def __init__(self, params: "MultirotorController.Params", *, ctx: BuildContext, mission, aircraft: dict, **_: object):
         self.params = params
@@ -168,6 +171,8 @@ class MultirotorController(Controller):
         self._accel_h_max_mps2 = G * math.tan(self.max_tilt)  # tilt limit on horizontal acceleration
         self._cmd_accel_mps2 = params.accel_mps2
         self._turn_rate_rps = None if params.turn_rate_deg_s is None else params.turn_rate_deg_s * DEG_TO_RAD
+        self._turn_accel_rps2 = None if params.turn_accel_deg_s2 is None else params.turn_accel_deg_s2 * DEG_TO_RAD
+        self._course_rate_cmd = 0.0  # rate of the shaped command's course (rad/s)
         self._v_shaped: tuple[float, float, float] | None = None  # last shaped command (accel/turn limits)
         self._guidance_dt_s = 0.0
 
@@ -222,7 +227,10 @@ class MultirotorController(Controller):
         b = self._waypoints_ned[self.index + 1]
         p = self._prev_pt
         turn = abs(_wrap_pi(math.atan2(b[1] - a[1], b[0] - a[0]) - math.atan2(a[1] - p[1], a[0] - p[0])))
-        return self.max_speed / self._turn_rate_rps * math.tan(0.5 * min(turn, math.radians(150.0)))
+        d = self.max_speed / self._turn_rate_rps * math.tan(0.5 * min(turn, math.radians(150.0)))
+        if self._turn_accel_rps2 is not None:  # the roll-in covers half its time's distance late
+            d += 0.5 * self.max_speed * self._turn_rate_rps / self._turn_accel_rps2
+        return d
 
     def _shape(self, v: tuple[float, float, float]) -> tuple[float, float, float]:
         """The horizontal command within the speed-rise and turn-rate limits of this tick."""
@@ -237,8 +245,18 @@ class MultirotorController(Controller):
         course = math.atan2(v[1], v[0])
         if self._turn_rate_rps is not None and prev_speed > 0.5:
             prev_course = math.atan2(prev[1], prev[0])
-            step = self._turn_rate_rps * dt
-            course = prev_course + _clip(_wrap_pi(course - prev_course), -step, step)
+            err = _wrap_pi(course - prev_course)
+            if self._turn_accel_rps2 is None:
+                step = self._turn_rate_rps * dt
+                course = prev_course + _clip(err, -step, step)
+            else:
+                # The fastest rate that can still be brought to zero at the new course
+                # (rate^2 <= 2 accel |error|), within the rate limit, reached at accel.
+                a = self._turn_accel_rps2
+                want = math.copysign(min(self._turn_rate_rps, math.sqrt(2.0 * a * abs(err))), err)
+                self._course_rate_cmd += _clip(want - self._course_rate_cmd, -a * dt, a * dt)
+                step = self._course_rate_cmd * dt
+                course = prev_course + (err if abs(step) >= abs(err) and step * err >= 0 else step)
         self._v_shaped = (speed * math.cos(course), speed * math.sin(course), v[2])
         return self._v_shaped
 

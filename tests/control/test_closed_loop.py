@@ -127,3 +127,29 @@ def test_multirotor_fly_by_turn_is_a_rate_limited_arc():
     far_from_end = np.hypot(pos[:, 0] - 240.0, pos[:, 1] - 120.0) > 20.0  # before braking for the end
     assert speed[(t > 15.0) & far_from_end].min() > 4.5  # no stop at the corner
     assert np.hypot(pos[-1, 0] - 240.0, pos[-1, 1] - 120.0) < 1.0
+
+
+def test_turn_rate_of_the_shaped_command_rolls_in_and_out():
+    """With turn_accel_deg_s2 the commanded course rate ramps up to turn_rate_deg_s and back to
+    zero at that acceleration, and the course settles on the new direction without overshoot."""
+    from testbench.control.evaluate_multirotor import waypoint_mission
+    from testbench.control.multirotor import MultirotorController
+
+    ctx = ev.make_context("q")
+    mission = waypoint_mission(ctx, points=[(100.0, 0.0)])
+    dyn = ev.make_dynamics("tb_quad", physics_rate_hz=200.0)
+    params = MultirotorController.Params(max_speed_mps=4.0, turn_rate_deg_s=2.0, turn_accel_deg_s2=0.5)
+    ctl = MultirotorController(params, ctx=ctx, mission=mission, aircraft=dyn.aircraft_meta)
+    dt = 0.02
+    ctl._guidance_dt_s = dt
+    ctl._v_shaped = (4.0, 0.0, 0.0)
+    target = (4.0 * math.cos(math.radians(40.0)), 4.0 * math.sin(math.radians(40.0)), 0.0)  # 40 deg right
+    courses = []
+    for _ in range(2000):
+        v = ctl._shape(target)
+        courses.append(math.degrees(math.atan2(v[1], v[0])))
+    rate = np.diff(courses) / dt
+    assert rate.max() <= 2.0 + 1e-6 and rate.max() > 1.9  # reaches the rate limit
+    turning = np.asarray(courses[:-2]) < 40.0 - 0.05  # the last tick snaps onto the course
+    assert np.abs(np.diff(rate) / dt)[turning].max() <= 0.5 + 1e-6  # rolls in and out at 0.5 deg/s^2
+    assert max(courses) <= 40.0 + 1e-6 and courses[-1] == pytest.approx(40.0, abs=1e-6)
