@@ -213,7 +213,6 @@ class InsEkfNavigator(Navigator):
         self._drag_mu_per_s = None if d is None else (d.coefficient_per_s or meas.momentum_drag_per_s(aircraft or {}))
         self._drag_acc = [0.0, 0.0, 0.0, 0.0, 0]  # sums over the interval: f_bx, f_by, v_bx, v_by; count
         self._drag_t0_s: float | None = None
-        self.drag_counts = {"accepted": 0, "rejected": 0}
 
     # ----------------------------------------------------------- Navigator API
     def initialize(self, t_s: float, initial: NavEstimate) -> None:
@@ -276,8 +275,7 @@ class InsEkfNavigator(Navigator):
         n = acc[4]
         y, H, R = meas.drag_specific_force(self.ekf, (acc[0] / n, acc[1] / n), (acc[2] / n, acc[3] / n),
                                            self._drag_mu_per_s, self.params.drag_aiding.sigma_mps2)
-        info = self.ekf.update("drag", t_s, y, H, R)
-        self.drag_counts["accepted" if info.accepted else "rejected"] += 1
+        self.ekf.update("drag", t_s, y, H, R)
         self._drag_acc = [0.0, 0.0, 0.0, 0.0, 0]
         self._drag_t0_s = None
 
