@@ -263,10 +263,12 @@ class RelnavAid(NavigationAid):
                 self.counters["filter_resets"] += 1
                 f = None  # the estimate lost its neighbour: restart from an identified bearing
             if f is None:
-                # A track whose bearing is where another neighbour's healthy estimate predicts
-                # one is most likely that neighbour under a stale ID: do not (re)start from it.
+                # A track whose bearing is where another neighbour's healthy estimate (a bearing
+                # fused less than report_max_age_s ago) predicts one is most likely that
+                # neighbour under a stale ID: do not (re)start from it.
                 if any(self._bearing_gates(g, t, m_xy, R_nc, c_off, focal, att_sigma)
-                       for other, g in self.filters.items() if other != peer and t - g.last_bearing_t_s < 1.0):
+                       for other, g in self.filters.items()
+                       if other != peer and t - g.last_bearing_t_s < self.params.report_max_age_s):
                     self.counters["restarts_refused"] += 1
                     continue
                 f = self._start_filter(peer, t, cam, mount, R_nb, det.centre_px, att_sigma)
