@@ -8,8 +8,9 @@ b turn-on bias, G gyro g-sensitivity, n(t) the random processes of `noise.TriadN
 flicker bank, rate random walk), sat clipping at the range, Q rounding to the LSB.
 f_imu = f_cg + dw/dt x r + w x (w x r): the accelerometer at lever arm r from the CG.
 
-`ImuErrorModel.apply` is vectorised over samples; the in-loop `Imu` sensor calls it with one
-sample, the static record (`imu_static`) with blocks of many: same code, same draws.
+`ImuErrorModel.apply` is vectorised over samples (the static record, `imu_static`, calls it with
+blocks of many); the in-loop `Imu` sensor calls its scalar twin `apply_one` sample by sample,
+which draws the random errors in blocks ahead: the same draws and recursions.
 """
 
 from __future__ import annotations
@@ -22,6 +23,10 @@ from testbench.core.registry import register
 from testbench.sensors.base import CachedSensor, check_rate
 from testbench.sensors.imu_params import ImuParams, ImuSpec, TriadSpec
 from testbench.sensors.noise import TriadNoise
+
+
+# In-loop samples whose random errors are drawn in one block (1 s at 128 Hz).
+_AHEAD_SAMPLES = 128
 
 
 class _TriadErrors:
@@ -37,6 +42,12 @@ class _TriadErrors:
         self.nl = spec.nonlinearity * rng.choice([-1.0, 1.0], size=3) / spec.range_q
         self.noise = TriadNoise(spec.white_density, spec.bias_instability, spec.rate_random_walk, dt_s)
         self.rng = rng.spawn(1)[0]  # own stream: block and per-sample draws coincide
+        # apply_one's copies as Python floats, and its block of noise drawn ahead.
+        self._rows = self.matrix.tolist()
+        self._nl, self._bias = self.nl.tolist(), self.bias.tolist()
+        self._range_q, self._lsb = float(spec.range_q), float(spec.lsb)
+        self._ahead: list[list[float]] = []
+        self._ahead_i = 0
 
     def apply(self, x: np.ndarray, extra: np.ndarray | float = 0.0) -> np.ndarray:
         """Sensed values (n, 3) for true values x (n, 3); `extra` is added before saturation."""
@@ -46,6 +57,28 @@ class _TriadErrors:
         if self.spec.lsb > 0:
             y = np.round(y / self.spec.lsb) * self.spec.lsb
         return y
+
+    def apply_one(self, x, extra=(0.0, 0.0, 0.0)) -> list[float]:
+        """Scalar twin of `apply` for one sample: x, extra 3 floats -> 3 sensed floats.
+
+        The random error comes from a block drawn ahead: it does not depend on the sensed
+        values, so the in-loop IMU draws it _AHEAD_SAMPLES at a time (the same stream and
+        recursions as `apply` on a block) and the rest is 3 x 3 arithmetic on Python floats,
+        where numpy's per-call overhead would be most of the cost (~15 calls per sample).
+        """
+        if self._ahead_i >= len(self._ahead):
+            self._ahead = self.noise.sample_block(_AHEAD_SAMPLES, self.rng).tolist()
+            self._ahead_i = 0
+        z = self._ahead[self._ahead_i]
+        self._ahead_i += 1
+        lim, lsb = self._range_q, self._lsb
+        out = []
+        for i in range(3):
+            m = self._rows[i]
+            y = m[0] * x[0] + m[1] * x[1] + m[2] * x[2] + self._nl[i] * x[i] * x[i] + self._bias[i] + extra[i] + z[i]
+            y = lim if y > lim else (-lim if y < -lim else y)
+            out.append(round(y / lsb) * lsb if lsb > 0 else y)
+        return out
 
 
 class ImuErrorModel:
@@ -62,11 +95,6 @@ class ImuErrorModel:
         self._gyro = _TriadErrors(self.spec.gyro, self.dt_s, g_rng)
         self._accel = _TriadErrors(self.spec.accel, self.dt_s, a_rng)
 
-    @property
-    def gyro_bias_rps(self) -> np.ndarray:
-        """Current total gyro bias (turn-on + slow processes), shape (3,) rad/s (for tests)."""
-        return self._gyro.bias + self._gyro.noise.bias_b
-
     def apply(self, omega_b_rps: np.ndarray, f_b_mps2: np.ndarray, rng: np.random.Generator):
         """Sensed (omega (n, 3) rad/s, f (n, 3) m/s^2) for true ones of the same shape.
 
@@ -79,6 +107,18 @@ class ImuErrorModel:
         w_meas = self._gyro.apply(w, self.spec.g_sensitivity * f)
         f_meas = self._accel.apply(f)
         return w_meas, f_meas
+
+    def apply_one(self, omega_b_rps, f_b_mps2, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        """Sensed (omega (3,) rad/s, f (3,) m/s^2) of one sample (_TriadErrors.apply_one): equal
+        to `apply` on a block of the same samples up to rounding (~1e-16 relative)."""
+        if self._gyro is None:
+            self._init(rng)
+        w = [float(v) for v in omega_b_rps]
+        f = [float(v) for v in f_b_mps2]
+        k = self.spec.g_sensitivity
+        w_meas = self._gyro.apply_one(w, (k * f[0], k * f[1], k * f[2]))
+        f_meas = self._accel.apply_one(f)
+        return np.array(w_meas), np.array(f_meas)
 
 
 @register("sensor", "imu")
@@ -95,17 +135,19 @@ class Imu(CachedSensor):
         self.spec = params.spec()
         self.model = ImuErrorModel(self.spec, 1.0 / self.rate_hz)
         self._prev_w: np.ndarray | None = None
+        self._has_lever_arm = bool(np.any(self.spec.lever_arm_b_m))
         self._prev_t = 0.0
 
     def _sample(self, truth: TruthState, world: WorldView, rng: np.random.Generator) -> ImuSample:
-        w = np.asarray(truth.omega_ib_b_rps, float)
-        f = np.asarray(truth.f_b_mps2, float)
+        w = truth.omega_ib_b_rps
+        f = truth.f_b_mps2
         r = self.spec.lever_arm_b_m
-        if np.any(r):
+        if self._has_lever_arm:
+            w = np.asarray(w, float)
             # Angular acceleration by a backward difference of the sampled rates.
             dt = truth.t_s - self._prev_t
             wdot = (w - self._prev_w) / dt if self._prev_w is not None and dt > 0 else np.zeros(3)
             f = f + np.cross(wdot, r) + np.cross(w, np.cross(w, r))
         self._prev_w, self._prev_t = w, truth.t_s
-        w_meas, f_meas = self.model.apply(w[None, :], f[None, :], rng)
-        return ImuSample(truth.t_s, w_meas[0], f_meas[0])
+        w_meas, f_meas = self.model.apply_one(w, f, rng)
+        return ImuSample(truth.t_s, w_meas, f_meas)

@@ -89,6 +89,22 @@ def test_block_and_per_sample_draws_coincide():
     np.testing.assert_allclose(fa, np.vstack([p[1] for p in per]), rtol=0, atol=1e-12)
 
 
+def test_in_loop_samples_drawn_ahead_equal_one_block():
+    # apply_one draws the random errors 128 samples ahead; across block boundaries it must
+    # give the samples one block draw gives (up to the running sum's rounding).
+    spec = ImuParams(preset="consumer_mems").spec()
+    rng = np.random.default_rng(11)
+    w = rng.normal(0.0, 0.3, (300, 3))
+    f = rng.normal(0.0, 3.0, (300, 3)) + [0.0, 0.0, -9.8]
+    a, b = ImuErrorModel(spec, 0.01), ImuErrorModel(spec, 0.01)
+    wa, fa = a.apply(w, f, np.random.default_rng(5))
+    rng_b = np.random.default_rng(5)
+    per = [b.apply_one(w[i], f[i], rng_b) for i in range(300)]
+    np.testing.assert_allclose(wa, np.vstack([p[0] for p in per]), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(fa, np.vstack([p[1] for p in per]), rtol=0, atol=1e-10)
+    assert not np.allclose(wa[1:], wa[:-1])  # the noise does move (not a constant row)
+
+
 def test_flicker_bank_is_stationary():
     n = TriadNoise(0.0, 1.0, 0.0, 0.01)
     x = np.vstack([TriadNoise(0.0, 1.0, 0.0, 0.01).sample_block(1, np.random.default_rng(s)) for s in range(2000)])
