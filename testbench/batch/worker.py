@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import logging
 import math
+import multiprocessing
 import os
 import time
 import traceback
@@ -20,6 +21,10 @@ from typing import Any
 import numpy as np
 
 log = logging.getLogger(__name__)
+
+# What one worker process keeps between its runs (testbench.world.memo): a 7 km world at
+# 1.5 m, camera imagery and reference map at two ground samples, is ~400 MB.
+WORKER_MEMO_MB = 1024
 
 
 def execute_run(scenario: str, run_dir: str, index: int, entropy: int, spawn_key: tuple[int, ...], overrides: tuple[str, ...], varied: dict[str, Any]) -> dict[str, Any]:
@@ -33,6 +38,12 @@ def execute_run(scenario: str, run_dir: str, index: int, entropy: int, spawn_key
         import cv2
 
         cv2.setNumThreads(1)
+        from testbench.world import memo
+
+        if multiprocessing.parent_process() is not None:
+            # A pool or Dask worker process (not the caller's own process, whose memory the
+            # memo would keep): its runs share whole-map reads and feature images.
+            memo.enable(int(float(os.environ.get("TESTBENCH_WORKER_MEMO_MB", WORKER_MEMO_MB)) * 2**20))
         from testbench.config.loader import load_scenario
         from testbench.sim.runner import run_scenario
 

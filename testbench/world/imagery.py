@@ -3,10 +3,13 @@ scenario's local north-east grid, read through geotiff.GeoRasterReader."""
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 from rasterio.enums import ColorInterp
 
 from testbench.core.interfaces import GeodeticOrigin
+from testbench.world import memo
 from testbench.world.geotiff import GeoRasterReader, open_georaster
 from testbench.world.raster import LocalRaster
 
@@ -43,6 +46,8 @@ class MapSource:
         self._grey = len(bands) == 1
         self._stretch = self._stretch_limits() if rescale else None
         self._cache: tuple[tuple, LocalRaster] | None = None
+        st = os.stat(self.path)
+        self._file_id = (os.fspath(self.path), st.st_size, st.st_mtime_ns)  # a rewritten file is another map
 
     crs = property(lambda self: self._reader.ds.crs)
     footprint = property(lambda self: self._reader.footprint,
@@ -79,12 +84,22 @@ class MapSource:
         if self._cache is not None and self._cache[0] == key:
             return self._cache[1]
         self._cache = None  # the window this read replaces need not coexist with the new one
-        h, w = self._reader.grid_shape(*key)
-        data, valid = self._reader.read_grid(north_max_m, east_min_m, gsd_m, h, w)
-        r = LocalRaster(self._to_rgb8(data), valid, float(north_max_m), float(east_min_m),
-                        float(gsd_m))
+        r = memo.cached(self.memo_key(*key), lambda: self._read(key))
         self._cache = (key, r)
         return r
+
+    def memo_key(self, north_min_m: float, north_max_m: float, east_min_m: float, east_max_m: float,
+                 gsd_m: float) -> tuple:
+        """What read_local's result depends on (the file as opened, the local frame, the box)."""
+        o = self.origin
+        return ("map", self._file_id, (o.lat_rad, o.lon_rad, o.alt_m),
+                (north_min_m, north_max_m, east_min_m, east_max_m, gsd_m))
+
+    def _read(self, key: tuple) -> LocalRaster:
+        north_min_m, north_max_m, east_min_m, east_max_m, gsd_m = key
+        h, w = self._reader.grid_shape(*key)
+        data, valid = self._reader.read_grid(north_max_m, east_min_m, gsd_m, h, w)
+        return LocalRaster(self._to_rgb8(data), valid, float(north_max_m), float(east_min_m), float(gsd_m))
 
     def sample(self, north_m, east_m):
         """Bilinear RGB at local points at the map's native resolution.

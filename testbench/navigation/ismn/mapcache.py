@@ -1,8 +1,8 @@
 """A large reference-map window kept across frames, so that each frame's search window is a
 crop instead of a fresh read (reprojecting a GeoTIFF window costs ~100 ms per frame).
 
-The cache holds one grey window per ground sample; a request inside it is served as a view.
-A crop lies on the cached grid, so its north-west corner can differ from the requested bounds
+The cache holds one grey window per ground sample (the whole map when it is small enough); a
+request inside it is served as a view. A crop lies on the cached grid, so its north-west corner can differ from the requested bounds
 by up to one pixel (it always covers them); callers use the returned raster's own geometry.
 """
 
@@ -13,6 +13,7 @@ import math
 import numpy as np
 
 from testbench.navigation.ismn.ortho import to_grey_u8
+from testbench.world import memo
 from testbench.world.raster import LocalRaster
 
 
@@ -29,8 +30,14 @@ class MapWindowCache:
     """Grey reference-map windows served from one larger cached read per ground sample.
 
     source: anything with read_local(north_min, north_max, east_min, east_max, gsd_m) ->
-    LocalRaster; grow: the cached read extends every side by grow x the request's larger
-    extent; max_side_px: the cached read's larger side is at most this (else read as asked).
+    LocalRaster. When the whole map (source.footprint) is at most max_side_px a side at the
+    requested ground sample, the cached read is the whole map, read once: every request is a
+    crop of it, padded with no-data where it reaches past the map. Otherwise the cached read
+    extends every side of the request by grow x its larger extent (at most max_side_px a side,
+    else read as asked) and is replaced when a request leaves it.
+
+    Reads, their grey images and feature images go through `testbench.world.memo`, so a batch
+    worker that enables the memo reads and prepares a whole map once for all its runs.
     """
 
     def __init__(self, source, grow: float = 0.5, max_side_px: int = 6000):
@@ -38,12 +45,20 @@ class MapWindowCache:
         self.grow = float(grow)
         self.max_side_px = int(max_side_px)
         self._cache: dict[float, LocalRaster] = {}
+        self._whole: dict[float, bool] = {}  # the cached read at this gsd is the whole map
+        self._memo_keys: dict[float, tuple | None] = {}
         self._features: dict[tuple[float, str], np.ndarray] = {}
+
+    def _whole_map_bounds(self, gsd_m: float) -> tuple[float, float, float, float] | None:
+        fp = getattr(self.source, "footprint", None)
+        if fp is None or max(fp.north_max_m - fp.north_min_m, fp.east_max_m - fp.east_min_m) > self.max_side_px * gsd_m:
+            return None
+        return fp.north_min_m, fp.north_max_m, fp.east_min_m, fp.east_max_m
 
     def read(self, north_min: float, north_max: float, east_min: float, east_max: float, gsd_m: float) -> LocalRaster:
         """LocalRaster (grey (H, W) uint8 data, valid) covering the bounds at gsd_m."""
         c = self._cache.get(gsd_m)
-        if c is None or not _covers(c, north_min, north_max, east_min, east_max):
+        if c is None or not (self._whole[gsd_m] or _covers(c, north_min, north_max, east_min, east_max)):
             # Drop the window this read replaces, and its feature images, before reading: the
             # old and new windows (and float32 features) need not coexist at the peak. (Same
             # eviction as ever: all windows go when more than 4, this one included, were held.)
@@ -55,18 +70,32 @@ class MapWindowCache:
             if evict_all:
                 self._cache.clear()
                 self._features.clear()
-            m = self.grow * max(north_max - north_min, east_max - east_min)
-            if max(north_max - north_min, east_max - east_min) + 2 * m > self.max_side_px * gsd_m:
-                m = 0.0
-            r = self.source.read_local(north_min - m, north_max + m, east_min - m, east_max + m, gsd_m)
-            c = LocalRaster(to_grey_u8(r.data), np.asarray(r.valid, bool), r.north0_m, r.east0_m, r.gsd_m)
+            box = self._whole_map_bounds(gsd_m)
+            self._whole[gsd_m] = box is not None
+            if box is None:
+                m = self.grow * max(north_max - north_min, east_max - east_min)
+                if max(north_max - north_min, east_max - east_min) + 2 * m > self.max_side_px * gsd_m:
+                    m = 0.0
+                box = (north_min - m, north_max + m, east_min - m, east_max + m)
+            key_fn = getattr(self.source, "memo_key", None)
+            key = None if key_fn is None else ("ismn-grey", key_fn(*box, gsd_m))
+            self._memo_keys[gsd_m] = key
+            c = memo.cached(key, lambda: self._read_grey(box, gsd_m)) if key is not None else self._read_grey(box, gsd_m)
             self._cache[gsd_m] = c
         g = c.gsd_m
-        r0 = max(0, int(math.floor((c.north0_m - north_max) / g + 1e-9)))
-        c0 = max(0, int(math.floor((east_min - c.east0_m) / g + 1e-9)))
-        r1 = min(c.shape[0], int(math.ceil((c.north0_m - north_min) / g - 1e-9)))
-        c1 = min(c.shape[1], int(math.ceil((east_max - c.east0_m) / g - 1e-9)))
+        r0 = int(math.floor((c.north0_m - north_max) / g + 1e-9))
+        c0 = int(math.floor((east_min - c.east0_m) / g + 1e-9))
+        r1 = int(math.ceil((c.north0_m - north_min) / g - 1e-9))
+        c1 = int(math.ceil((east_max - c.east0_m) / g - 1e-9))
+        if not self._whole[gsd_m]:
+            r0, c0, r1, c1 = max(0, r0), max(0, c0), min(c.shape[0], r1), min(c.shape[1], c1)
+        elif r0 < 0 or c0 < 0 or r1 > c.shape[0] or c1 > c.shape[1]:
+            return _padded_crop(c, r0, c0, r1, c1)
         return LocalRaster(c.data[r0:r1, c0:c1], c.valid[r0:r1, c0:c1], c.north0_m - r0 * g, c.east0_m + c0 * g, g)
+
+    def _read_grey(self, box, gsd_m: float) -> LocalRaster:
+        r = self.source.read_local(box[0], box[1], box[2], box[3], gsd_m)
+        return LocalRaster(to_grey_u8(r.data), np.asarray(r.valid, bool), r.north0_m, r.east0_m, r.gsd_m)
 
     def features(self, window: LocalRaster, kind: str) -> np.ndarray | None:
         """Appearance-robust feature image (features.robust_image) of a window this cache
@@ -80,10 +109,26 @@ class MapWindowCache:
         if f is None:
             from testbench.navigation.ismn.features import robust_image
 
-            f = robust_image(c.data, c.valid, kind)[0]
+            key = self._memo_keys.get(window.gsd_m)
+            compute = lambda: robust_image(c.data, c.valid, kind)[0]  # noqa: E731
+            f = memo.cached(("ismn-features", kind, key), compute) if key is not None else compute()
             self._features[(window.gsd_m, kind)] = f
         r0, c0 = at
         return f[r0:r0 + window.shape[0], c0:c0 + window.shape[1]]
+
+
+def _padded_crop(c: LocalRaster, r0: int, c0: int, r1: int, c1: int) -> LocalRaster:
+    """Rows r0:r1, cols c0:c1 of c (grey), no-data (0, invalid) where they lie outside it."""
+    g = c.gsd_m
+    h, w = max(0, r1 - r0), max(0, c1 - c0)
+    data = np.zeros((h, w), c.data.dtype)
+    valid = np.zeros((h, w), bool)
+    ya, xa = max(0, r0), max(0, c0)
+    yb, xb = min(c.shape[0], r1), min(c.shape[1], c1)
+    if yb > ya and xb > xa:
+        data[ya - r0:yb - r0, xa - c0:xb - c0] = c.data[ya:yb, xa:xb]
+        valid[ya - r0:yb - r0, xa - c0:xb - c0] = c.valid[ya:yb, xa:xb]
+    return LocalRaster(data, valid, c.north0_m - r0 * g, c.east0_m + c0 * g, g)
 
 
 def _crop_of(c: LocalRaster, r: LocalRaster) -> tuple[int, int] | None:
