@@ -30,7 +30,7 @@ class MapWindowCache:
     """Grey reference-map windows served from one larger cached read per ground sample.
 
     source: anything with read_local(north_min, north_max, east_min, east_max, gsd_m) ->
-    LocalRaster. When the whole map (source.footprint) is at most max_side_px a side at the
+    LocalRaster. When the whole map (source.footprint) is at most whole_map_max_px a side at the
     requested ground sample, the cached read is the whole map, read once: every request is a
     crop of it, padded with no-data where it reaches past the map. Otherwise the cached read
     extends every side of the request by grow x its larger extent (at most max_side_px a side,
@@ -40,10 +40,13 @@ class MapWindowCache:
     worker that enables the memo reads and prepares a whole map once for all its runs.
     """
 
-    def __init__(self, source, grow: float = 0.5, max_side_px: int = 6000):
+    def __init__(self, source, grow: float = 0.5, max_side_px: int = 6000, whole_map_max_px: int = 5000):
         self.source = source
         self.grow = float(grow)
         self.max_side_px = int(max_side_px)
+        # A whole map is read only up to this side (5000 px: 25 Mpx, ~150 MB with its feature
+        # image), no more than a grown window could take: a 10 km map at 1 m stays windowed.
+        self.whole_map_max_px = min(int(whole_map_max_px), self.max_side_px)
         self._cache: dict[float, LocalRaster] = {}
         self._whole: dict[float, bool] = {}  # the cached read at this gsd is the whole map
         self._memo_keys: dict[float, tuple | None] = {}
@@ -51,7 +54,7 @@ class MapWindowCache:
 
     def _whole_map_bounds(self, gsd_m: float) -> tuple[float, float, float, float] | None:
         fp = getattr(self.source, "footprint", None)
-        if fp is None or max(fp.north_max_m - fp.north_min_m, fp.east_max_m - fp.east_min_m) > self.max_side_px * gsd_m:
+        if fp is None or max(fp.north_max_m - fp.north_min_m, fp.east_max_m - fp.east_min_m) > self.whole_map_max_px * gsd_m:
             return None
         return fp.north_min_m, fp.north_max_m, fp.east_min_m, fp.east_max_m
 
