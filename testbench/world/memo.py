@@ -50,14 +50,15 @@ def held_bytes() -> int:
     return _held_bytes
 
 
-def cached(key: Hashable, compute: Callable[[], T]) -> T:
-    """compute() memoised under key when the memo is enabled (else just compute()).
+def cached(key: Hashable | None, compute: Callable[[], T]) -> T:
+    """compute() memoised under key when the memo is enabled (else, or with key None, just
+    compute()).
 
     Arrays in the value (an ndarray, or the ndarray attributes of an object such as a
     LocalRaster) are set read-only and counted towards max_bytes.
     """
     global _held_bytes
-    if _max_bytes <= 0:
+    if _max_bytes <= 0 or key is None:
         return compute()
     with _lock:
         hit = _entries.get(key)

@@ -2,8 +2,9 @@
 crop instead of a fresh read (reprojecting a GeoTIFF window costs ~100 ms per frame).
 
 The cache holds one grey window per ground sample (the whole map when it is small enough); a
-request inside it is served as a view. A crop lies on the cached grid, so its north-west corner can differ from the requested bounds
-by up to one pixel (it always covers them); callers use the returned raster's own geometry.
+request inside it is served as a view. A crop lies on the cached grid, so its north-west corner
+can differ from the requested bounds by up to one pixel (it always covers them); callers use the
+returned raster's own geometry.
 """
 
 from __future__ import annotations
@@ -83,7 +84,7 @@ class MapWindowCache:
             key_fn = getattr(self.source, "memo_key", None)
             key = None if key_fn is None else ("ismn-grey", key_fn(*box, gsd_m))
             self._memo_keys[gsd_m] = key
-            c = memo.cached(key, lambda: self._read_grey(box, gsd_m)) if key is not None else self._read_grey(box, gsd_m)
+            c = memo.cached(key, lambda: self._read_grey(box, gsd_m))
             self._cache[gsd_m] = c
         g = c.gsd_m
         r0 = int(math.floor((c.north0_m - north_max) / g + 1e-9))
@@ -113,8 +114,7 @@ class MapWindowCache:
             from testbench.navigation.ismn.features import robust_image
 
             key = self._memo_keys.get(window.gsd_m)
-            compute = lambda: robust_image(c.data, c.valid, kind)[0]  # noqa: E731
-            f = memo.cached(("ismn-features", kind, key), compute) if key is not None else compute()
+            f = memo.cached(key and ("ismn-features", kind, key), lambda: robust_image(c.data, c.valid, kind)[0])
             self._features[(window.gsd_m, kind)] = f
         r0, c0 = at
         return f[r0:r0 + window.shape[0], c0:c0 + window.shape[1]]
