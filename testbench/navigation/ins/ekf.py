@@ -269,6 +269,35 @@ class ErrorStateEKF:
         return CorrectionInfo(t_s=info.t_s, kind=info.kind, innovation=info.innovation,
                               innovation_cov=info.innovation_cov, nis=nis_before, accepted=True)
 
+    def reset_height(self, kind: str, t_s: float, y, H, R, elapsed_s: float) -> CorrectionInfo:
+        """Re-acquire the height from a height measurement (barometer: residual y (1,) m, H (1, 22)
+        with its down-position entry, R (1, 1)) the gate has rejected for elapsed_s seconds.
+
+        The vertical twin of reset_position, as PX4's EKF2 resets its height to the baro after a
+        height fusion timeout: the down-position variance becomes (y^2 + R) / H_d^2 with its
+        cross-covariances cleared, the down-velocity variance grows by (y / elapsed_s)^2 (the
+        velocity error that would explain the disagreement), then the measurement is fused
+        without the gate. The returned info carries the NIS the gate saw, and accepted=True.
+        """
+        self.flush()
+        y = np.atleast_1d(np.asarray(y, float))
+        H = np.atleast_2d(np.asarray(H, float))
+        R = np.atleast_2d(np.asarray(R, float))
+        nis_before = float(y @ np.linalg.solve(H @ self.P @ H.T + R, y))
+        i_d, i_vd = IP.start + 2, IV.start + 2
+        h_d = float(H[0, i_d])
+        if h_d == 0.0:
+            raise ValueError(f"{kind}: reset_height needs a measurement of the down position")
+        P = self.P.copy()
+        P[i_d, :] = 0.0
+        P[:, i_d] = 0.0
+        P[i_d, i_d] = (float(y[0]) ** 2 + float(R[0, 0])) / h_d**2
+        P[i_vd, i_vd] += (float(y[0]) / max(float(elapsed_s), 1.0)) ** 2
+        self.P = 0.5 * (P + P.T)
+        info = self.update(kind, t_s, y, H, R, gate=False)
+        return CorrectionInfo(t_s=info.t_s, kind=info.kind, innovation=info.innovation,
+                              innovation_cov=info.innovation_cov, nis=nis_before, accepted=True)
+
     def inject(self, dx: np.ndarray) -> None:
         """Nominal <- nominal (+) dx (22,)."""
         ins = self.ins

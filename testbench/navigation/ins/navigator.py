@@ -166,6 +166,12 @@ class InsEkfNavigator(Navigator):
         ErrorStateEKF.reset_position), as PX4's EKF2 does after a GNSS fusion timeout. 0
         disables the reset. No reset while position fixes (scene matching) are being accepted:
         then the filter agrees with them and GNSS is what is wrong (spoofed)."""
+        baro_reset_after_s: float = pydantic.Field(5.0, ge=0.0)
+        """Barometer samples that keep failing the gate for this long (s): the filter's height
+        has diverged (a barometer does not jump); the next sample resets the height to it
+        (ErrorStateEKF.reset_height), as PX4's EKF2 resets its height after a height fusion
+        timeout. Without it a filter that lost its attitude rejected the baro for good and flew
+        the vehicle into the ground (lowalt_ismn_150m, t = 150-212 s). 0 disables the reset."""
         use_baro: bool = True
         use_mag: bool = True
         mag_mode: Literal["heading", "vector"] = "heading"
@@ -209,6 +215,7 @@ class InsEkfNavigator(Navigator):
         self._last_gnss_t = -math.inf
         self._last_fix_ok_t_s: float | None = None  # last accepted position fix (None: none yet)
         self._last_gnss_ok_t_s: float | None = None  # last accepted GNSS fix (None: none yet)
+        self._last_baro_ok_t_s: float | None = None  # last accepted barometer sample
         d = params.drag_aiding
         self._drag_mu_per_s = None if d is None else (d.coefficient_per_s or meas.momentum_drag_per_s(aircraft or {}))
         self._drag_acc = [0.0, 0.0, 0.0, 0.0, 0]  # sums over the interval: f_bx, f_by, v_bx, v_by; count
@@ -301,7 +308,7 @@ class InsEkfNavigator(Navigator):
         if isinstance(measurement, BaroSample):
             if not p.use_baro:
                 return None
-            return ekf.update("baro", t, *meas.baro_altitude(ekf, measurement.altitude_m, p.meas_sigma.baro_m))
+            return self._correct_baro(measurement, t)
         if isinstance(measurement, MagSample):
             return self._correct_mag(measurement, t) if p.use_mag else None
         if isinstance(measurement, GnssFix):
@@ -382,6 +389,23 @@ class InsEkfNavigator(Navigator):
             R = np.block([[R, np.zeros((3, 3))], [np.zeros((3, 3)), Rv]])
         info, self._last_gnss_ok_t_s = self._update_or_reset(
             "gnss", t, y, H, R, self._last_gnss_ok_t_s, self._last_fix_ok_t_s, self.params.gnss_reset_after_s)
+        return info
+
+    def _correct_baro(self, baro: BaroSample, t: float) -> CorrectionInfo:
+        """Fuse a barometric altitude through the gate; after baro_reset_after_s of rejections
+        reset the height to it (Params.baro_reset_after_s)."""
+        p, ekf = self.params, self.ekf
+        y, H, R = meas.baro_altitude(ekf, baro.altitude_m, p.meas_sigma.baro_m)
+        info = ekf.update("baro", t, y, H, R)
+        if info.accepted:
+            self._last_baro_ok_t_s = t
+            return info
+        if self._last_baro_ok_t_s is None:
+            return info
+        lost_s = t - self._last_baro_ok_t_s
+        if p.baro_reset_after_s > 0.0 and lost_s >= p.baro_reset_after_s:
+            self._last_baro_ok_t_s = t
+            return ekf.reset_height("baro:reset", t, y, H, R, lost_s)
         return info
 
     def _update_or_reset(self, kind: str, t: float, y, H, R, last_ok_t_s: float | None,

@@ -198,6 +198,34 @@ def test_fixes_rejected_past_the_timeout_reset_the_position():
             assert np.linalg.norm(nav.estimate().pos_ned_m - true_ned) < 10.0
 
 
+def test_baro_rejected_past_the_timeout_resets_the_height():
+    """A filter confidently 60 m off in height (the baro rejected) re-acquires it after
+    baro_reset_after_s of rejections; with the reset off it keeps rejecting the baro."""
+    q = np.array([1.0, 0, 0, 0])
+    w, f = static_imu(LAT0, H0, q)
+    for reset_after_s, expect_reset in ((5.0, True), (0.0, False)):
+        nav = _navigator(use_baro=True, baro_reset_after_s=reset_after_s)
+        nav.initialize(0.0, _estimate_from(LAT0, LON0, H0, np.zeros(3), q))
+        for k in range(1, 201):
+            nav.predict(ImuSample(k * 0.05, w, f))
+            if k % 20 == 0:
+                nav.correct(GnssFix(k * 0.05, LAT0, LON0, H0, np.zeros(3), np.full(3, 2.0), np.full(3, 0.1)))
+                assert nav.correct(BaroSample(k * 0.05, 90000.0, H0)).accepted
+        infos = []
+        for k in range(1, 9):  # a baro sample a second at t = 11..18 s, 60 m above the filter
+            t = 10.0 + k
+            nav.predict(ImuSample(t, w, f))
+            infos.append(nav.correct(BaroSample(t, 90000.0, H0 + 60.0)))
+        if expect_reset:
+            # the last accepted sample (t = 10 s) set the clock; rejected until 15 s, reset then
+            assert [i.accepted for i in infos[:5]] == [False] * 4 + [True]
+            assert infos[4].kind == "baro:reset" and infos[4].nis > 100.0
+            assert abs(-nav.estimate().pos_ned_m[2] - (H0 + 60.0 - ORIGIN.alt_m)) < 3.0
+            assert all(i.accepted for i in infos[5:]) and infos[5].kind == "baro"
+        else:
+            assert not any(i.accepted for i in infos)
+
+
 def test_dispatch_and_estimate():
     nav = _converged_static_nav()
     assert nav.correct(UwbRange(10.0, "uav1", 50.0, -70.0)) is None
