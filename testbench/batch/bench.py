@@ -54,10 +54,12 @@ def swarm_figures(duration_s: float = 20.0) -> dict[str, float]:
     }
 
 
-def montecarlo_speedup(runs: int = 4, scenario: str = "paper_ismn_800m", duration_s: float = 60.0) -> dict[str, float]:
+def montecarlo_speedup(runs: int = 8, scenario: str = "paper_ismn_800m", duration_s: float = 60.0) -> dict[str, float]:
     """Throughput (runs per minute) with 1 and 2 workers, and their ratio, on the issue's
     workload (the scene-matching scenario, shortened): runs long enough that the per-run
-    start-up (process, imports, world) does not dominate as it would with sub-second runs."""
+    start-up (process, imports, world) does not dominate as it would with sub-second runs, and
+    enough of them that each worker's first run (which reads and prepares the maps its later
+    runs reuse, world.memo) is not half of a worker's batch."""
     out: dict[str, float] = {}
     path = str(SCENARIOS_DIR / f"{scenario}.yaml")
     with tempfile.TemporaryDirectory() as tmp:

@@ -55,6 +55,9 @@ def run(args: argparse.Namespace) -> int:
     print(f"{outcome.status}: {loaded.scenario.name} -> {out}  ({shown})")
     if outcome.abort_reason:
         print(f"aborted: {outcome.abort_reason}", file=sys.stderr)
+    if isinstance(m.get("nav.lost_at_s"), (int, float)):
+        print(f"warning: the navigator was lost from t={m['nav.lost_at_s']:.1f} s: its position error stayed beyond "
+              "5.5 sigma of its own covariance for 10 s (nav.lost_at_s; see nav.nees in metrics.json)", file=sys.stderr)
     for key in outcome.failed_thresholds:
         print(f"threshold failed: {key}", file=sys.stderr)
     return outcome.exit_status

@@ -19,6 +19,14 @@ from testbench.scoring.stats import ChiSquareStats, chi_square_stats, error_stat
 
 MIN_AGL_FOR_PCT_M = 1.0  # below this the vehicle is on the ground: % of AGL is meaningless
 
+# A navigator is "lost" when its position error stays beyond anything its own covariance
+# allows: position NEES above the chi-square(3) quantile at 1 - 1e-6 (30.66: a 5.5-sigma
+# error) on every record row for LOST_HOLD_S. A consistent filter spends ~1e-6 of its time
+# there, and not 10 s in a row; a filter that lost its fixes and kept its confidence (the error
+# grows, the claimed sigma does not) is there for good.
+LOST_NEES = 30.66
+LOST_HOLD_S = 10.0
+
 
 def position_errors_ned_m(tel: pd.DataFrame) -> np.ndarray:
     """nav - truth position (m), shape (n, 3), NED."""
@@ -64,6 +72,26 @@ def position_nees(tel: pd.DataFrame) -> np.ndarray:
     horiz = (se2 * en * en - 2.0 * cne * en * ee + sn2 * ee * ee) / det
     nees = horiz + ed * ed / np.where(ok, sd2, 1.0)
     return np.where(ok, nees, np.nan)
+
+
+def lost_at_s(tel: pd.DataFrame) -> float | None:
+    """Earliest time (s) from which some vehicle's position NEES stays above LOST_NEES for at
+    least LOST_HOLD_S (rows without a covariance break a streak); None if it never does."""
+    nees = position_nees(tel)
+    t_all = column(tel, "t_s")
+    ids = tel["vehicle_id"].to_numpy() if "vehicle_id" in tel else np.zeros(len(tel))
+    first: float | None = None
+    for vid in pd.unique(ids):
+        sel = ids == vid
+        t = t_all[sel]
+        above = np.nan_to_num(nees[sel], nan=0.0) > LOST_NEES
+        # Streaks of consecutive rows above: starts where above begins, ends where it stops.
+        edges = np.diff(np.r_[0, above.astype(np.int8), 0])
+        for i0, i1 in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)):
+            if t[i1 - 1] - t[i0] >= LOST_HOLD_S:
+                first = float(t[i0]) if first is None else min(first, float(t[i0]))
+                break
+    return first
 
 
 def _diag_nees(err: np.ndarray, sig: np.ndarray) -> np.ndarray:
@@ -169,4 +197,5 @@ def compute_nav(record: RunRecord) -> NavMetrics | None:
         turning=_subset(e3, eh, pct, dur, turning & valid),
         nees=nees,
         nis=compute_nis(record),
+        lost_at_s=lost_at_s(tel),
     )

@@ -107,7 +107,9 @@ class NavMetrics(_Section):
     percentage of the true height above ground (rows with AGL > 1 m);
     denied / smooth / turning: the same over GNSS-denied rows and per flight phase;
     nees: "position" (3 dof, with the recorded north-east covariance), "velocity" and
-    "attitude" (3 dof, diagonal sigmas) -> ChiSquareStats; nis: correction kind -> NisStats.
+    "attitude" (3 dof, diagonal sigmas) -> ChiSquareStats; nis: correction kind -> NisStats;
+    lost_at_s: when the navigator was lost (metrics_nav.lost_at_s: its position error stayed
+    beyond a 5.5-sigma bound of its own covariance for 10 s), None if never.
     """
 
     position_error_m: ErrorStats | None = None
@@ -119,6 +121,7 @@ class NavMetrics(_Section):
     turning: NavSubset | None = None
     nees: Mapping[str, ChiSquareStats] = field(default_factory=dict)
     nis: Mapping[str, NisStats] = field(default_factory=dict)
+    lost_at_s: float | None = None
 
 
 @dataclass(frozen=True)

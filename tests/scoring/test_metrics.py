@@ -67,6 +67,24 @@ def test_position_nees_with_correlated_covariance(rng):
     assert not np.allclose(position_nees(tel), direct)
 
 
+def test_lost_navigator_is_flagged_when_its_error_outgrows_its_covariance():
+    """An error that grows while the claimed sigma stays at 1 m: lost where the NEES crosses
+    30.66 and stays (not at a single 6-sigma row, and not for a second vehicle that is fine)."""
+    n = 500  # 50 s at 10 Hz
+    lost = straight_telemetry(n=n, err_ned=(0.0, 0.0, 0.0), nav_sigma_north_m=1.0, nav_sigma_east_m=1.0,
+                              nav_sigma_down_m=1.0, nav_cov_ne_m2=0.0)
+    t = lost["t_s"].to_numpy()
+    lost["nav_east_m"] = lost["truth_east_m"] + np.where(t > 20.0, 0.5 * (t - 20.0), 0.0)  # sqrt(30.66) m at 31.07 s
+    lost.loc[50, "nav_east_m"] += 6.0  # one 6-sigma row at 5 s is not being lost
+    fine = straight_telemetry(n=n, vehicle_id="b", err_ned=(0.5, 0.0, 0.0), nav_sigma_north_m=1.0,
+                              nav_sigma_east_m=1.0, nav_sigma_down_m=1.0, nav_cov_ne_m2=0.0)
+    nav = compute_nav(record_of(pd.concat([fine, lost], ignore_index=True)))
+    assert nav.lost_at_s == pytest.approx(31.1, abs=0.05)
+    assert compute_nav(record_of(fine)).lost_at_s is None
+    short = lost[lost["t_s"] < 41.0].reset_index(drop=True)  # ends under 10 s after the crossing: not yet
+    assert compute_nav(record_of(short)).lost_at_s is None
+
+
 def test_cross_track_geometry():
     # Line from (0,0) heading north-east; a point 10 m to its right (south-east of it).
     d = 10.0 / np.sqrt(2)
