@@ -66,6 +66,11 @@ class ErrorStateEKF:
     the GNSS receiver's correlated position error (0 sigma: no such error is modelled);
     fix_error_sigma_m, fix_error_tau_s: the same for the error successive position fixes share
     (sigma: one figure for every axis, or (3,) per NED axis).
+    gyro_scale_sigma, scale_corr_angle_rad: the gyros' scale-factor and cross-axis error (1 sigma,
+    rad per rad turned) is a constant error in each rate the IMU reads, which the error state
+    does not carry: it enters P as attitude noise per angle turned, s^2 Theta |dtheta| per axis,
+    so that turning Theta = scale_corr_angle_rad (a corner) adds the variance (s Theta)^2 that
+    the constant error builds over it (0: off).
     bias_model: "random_walk" (the IMU bias errors are driven by the Gauss-Markov process's
     noise, 2 s^2 / tau, plus the rate random walk, and never decay; the nominal biases are
     held) or "gauss_markov" (errors and nominal biases decay with tau: right only when the whole
@@ -79,7 +84,8 @@ class ErrorStateEKF:
                  cov_interval_s: float = 0.05, baro_bias_rw_m_sqrt_s: float = 0.01,
                  gnss_error_sigma_m: float = 0.0, gnss_error_tau_s: float = math.inf,
                  fix_error_sigma_m: float | np.ndarray = 0.0, fix_error_tau_s: float = math.inf,
-                 bias_model: str = "random_walk", vehicle_id: str | None = None):
+                 bias_model: str = "random_walk", gyro_scale_sigma: float = 0.0,
+                 scale_corr_angle_rad: float = 0.5 * math.pi, vehicle_id: str | None = None):
         if bias_model not in ("random_walk", "gauss_markov"):
             raise ValueError(f"bias_model {bias_model!r}: expected 'random_walk' or 'gauss_markov'")
         self.noise = noise
@@ -90,6 +96,8 @@ class ErrorStateEKF:
         self.gate_probability = float(gate_probability)
         self.cov_interval_s = float(cov_interval_s)
         self.vehicle_id = vehicle_id
+        # Attitude variance per radian turned (see the class docstring).
+        self._att_var_per_rad = float(gyro_scale_sigma) ** 2 * float(scale_corr_angle_rad)
         self.gnss_error_tau_s = float(gnss_error_tau_s)
         self.fix_error_tau_s = float(fix_error_tau_s)
         self._qc = process_noise_diag(noise, baro_bias_rw_m_sqrt_s, gnss_error_sigma_m, self.gnss_error_tau_s,
@@ -104,6 +112,7 @@ class ErrorStateEKF:
         self.omega_ib_b_rps = np.zeros(3)  # last bias-corrected gyro rate
         self._acc_T = 0.0
         self._acc_fn = [0.0, 0.0, 0.0]
+        self._acc_turn_rad = 0.0
 
     # ------------------------------------------------------------------ state
     def initialize(self, t_s: float, lat_rad: float, lon_rad: float, h_m: float, vel_ned_mps,
@@ -118,6 +127,7 @@ class ErrorStateEKF:
         self.P = np.array(P0, float)
         self._acc_T = 0.0
         self._acc_fn = [0.0, 0.0, 0.0]
+        self._acc_turn_rad = 0.0
         self._check("initial covariance")
 
     @property
@@ -159,6 +169,8 @@ class ErrorStateEKF:
         acc[1] += (2 * (qx * qy + qw * qz) * fx + (1 - 2 * (qx * qx + qz * qz)) * fy + 2 * (qy * qz - qw * qx) * fz) * dt
         acc[2] += (2 * (qx * qz - qw * qy) * fx + 2 * (qy * qz + qw * qx) * fy + (1 - 2 * (qx * qx + qy * qy)) * fz) * dt
         self._acc_T += dt
+        if self._att_var_per_rad:
+            self._acc_turn_rad += math.sqrt(wx * wx + wy * wy + wz * wz) * dt
         if self._acc_T >= self.cov_interval_s:
             self.flush()
 
@@ -172,6 +184,8 @@ class ErrorStateEKF:
         F = continuous_F(ins.lat_rad, ins.h_m, ins.vel, self.C_nb, f_n,
                          self._tau_bg_s, self._tau_ba_s, tau_gnss_s=self.gnss_error_tau_s, tau_fix_s=self.fix_error_tau_s)
         Phi, Qd = discretize(F, self._qc, T)
+        if self._acc_turn_rad:
+            Qd[IA, IA] += (self._att_var_per_rad * self._acc_turn_rad) * np.eye(3)
         P = Phi @ self.P @ Phi.T + Qd
         self.P = 0.5 * (P + P.T)
         # Gauss-Markov nominal states decay like their errors do (consistent model).
@@ -185,6 +199,7 @@ class ErrorStateEKF:
             self.b_fix *= math.exp(-T / self.fix_error_tau_s)
         self._acc_T = 0.0
         self._acc_fn = [0.0, 0.0, 0.0]
+        self._acc_turn_rad = 0.0
         self._check("covariance propagation")
 
     # ---------------------------------------------------------------- updates

@@ -87,6 +87,16 @@ def preset_datasheet(name: str) -> dict[str, float]:
     )
 
 
+def preset_scale_error(name: str) -> float:
+    """1-sigma gyro rate error per unit rate of a sensor preset, sqrt(scale factor^2 +
+    misalignment^2) (unitless: rad of attitude error per rad turned, about one axis). KeyError
+    if unknown."""
+    from testbench.sensors.imu_params import PRESETS  # noqa: PLC0415 (sensors own the presets)
+
+    d = PRESETS[name]
+    return math.hypot(d["gyro_scale_factor_ppm"] * 1e-6, d["gyro_misalignment_mrad"] * 1e-3)
+
+
 def preset_names() -> list[str]:
     from testbench.sensors.imu_params import PRESETS  # noqa: PLC0415
 

@@ -30,7 +30,7 @@ from testbench.navigation.ins import measurements as meas
 from testbench.navigation.ins.consistency import error_state
 from testbench.navigation.ins.ekf import ErrorStateEKF
 from testbench.navigation.ins.error_model import IA, IBA, IBB, IBG, IFX, IGN, IP, IV, N_STATES
-from testbench.navigation.ins.imu_noise import imu_noise_from_datasheet, preset_datasheet, preset_names
+from testbench.navigation.ins.imu_noise import imu_noise_from_datasheet, preset_datasheet, preset_names, preset_scale_error
 from testbench.navigation.ins.magnetic import OnboardMagneticModel
 
 log = logging.getLogger(__name__)
@@ -166,6 +166,14 @@ class InsEkfNavigator(Navigator):
         ErrorStateEKF.reset_position), as PX4's EKF2 does after a GNSS fusion timeout. 0
         disables the reset. No reset while position fixes (scene matching) are being accepted:
         then the filter agrees with them and GNSS is what is wrong (spoofed)."""
+        gyro_scale_error: float | None = pydantic.Field(None, ge=0.0)
+        """1-sigma gyro scale-factor and cross-axis error (rad of attitude error per rad turned);
+        None: the IMU preset's sqrt(scale_factor^2 + misalignment^2) (consumer_mems: 0.0135,
+        1.2 deg after a 90 deg corner; paper: 1.4e-4). The filter has no states for it: it
+        widens the attitude covariance per angle turned (ErrorStateEKF), so that after a corner
+        the filter expects the tilt error the corner left. 0: off."""
+        scale_error_angle_deg: float = pydantic.Field(90.0, gt=0.0)
+        """The turn over which the scale-factor error is modelled as one constant (a corner)."""
         baro_reset_after_s: float = pydantic.Field(5.0, ge=0.0)
         """Barometer samples that keep failing the gate for this long (s): the filter's height
         has diverged (a barometer does not jump); the next sample resets the height to it
@@ -208,6 +216,9 @@ class InsEkfNavigator(Navigator):
             gnss_error_sigma_m=params.gnss_error_sigma_m, gnss_error_tau_s=params.gnss_error_tau_s,
             fix_error_sigma_m=self.fix_error_sigma_ned_m, fix_error_tau_s=params.fix_error_tau_s,
             bias_model=params.imu_bias_model, vehicle_id=ctx.vehicle_id,
+            gyro_scale_sigma=(preset_scale_error(params.imu_preset) if params.gyro_scale_error is None
+                              else params.gyro_scale_error),
+            scale_corr_angle_rad=math.radians(params.scale_error_angle_deg),
         )
         self._mag_model: OnboardMagneticModel | None = None
         self._airspeed: float | None = None

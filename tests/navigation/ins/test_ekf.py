@@ -226,6 +226,26 @@ def test_baro_rejected_past_the_timeout_resets_the_height():
             assert not any(i.accepted for i in infos)
 
 
+def test_turning_widens_the_attitude_by_the_gyro_scale_error():
+    """gyro_scale_error s: a turn of theta adds about s^2 Theta theta to each attitude variance
+    (Theta = 90 deg); holding still adds nothing."""
+    from testbench.navigation.ins.error_model import IA
+
+    q = np.array([1.0, 0, 0, 0])
+    w0, f = static_imu(LAT0, H0, q)
+    var = {}
+    for s, yaw_rate in ((0.0, 0.5), (0.02, 0.5), (0.02, 0.0)):
+        nav = _navigator(use_gnss=False, gyro_scale_error=s)
+        nav.initialize(0.0, _estimate_from(LAT0, LON0, H0, np.zeros(3), q))
+        w = w0 + np.array([0.0, 0.0, yaw_rate])
+        for k in range(1, 201):  # 10 s: 5 rad turned at 0.5 rad/s
+            nav.predict(ImuSample(k * 0.05, w, f))
+        var[(s, yaw_rate)] = np.diag(nav.ekf.covariance())[IA]
+    added = var[(0.02, 0.5)] - var[(0.0, 0.5)]
+    np.testing.assert_allclose(added, 0.02**2 * (np.pi / 2) * 5.0, rtol=0.05)
+    np.testing.assert_allclose(var[(0.02, 0.0)], var[(0.0, 0.5)], rtol=0.05)  # no turn, no extra
+
+
 def test_dispatch_and_estimate():
     nav = _converged_static_nav()
     assert nav.correct(UwbRange(10.0, "uav1", 50.0, -70.0)) is None
