@@ -405,25 +405,18 @@ class InsEkfNavigator(Navigator):
     def _correct_baro(self, baro: BaroSample, t: float) -> CorrectionInfo:
         """Fuse a barometric altitude through the gate; after baro_reset_after_s of rejections
         reset the height to it (Params.baro_reset_after_s)."""
-        p, ekf = self.params, self.ekf
-        y, H, R = meas.baro_altitude(ekf, baro.altitude_m, p.meas_sigma.baro_m)
-        info = ekf.update("baro", t, y, H, R)
-        if info.accepted:
-            self._last_baro_ok_t_s = t
-            return info
-        if self._last_baro_ok_t_s is None:
-            return info
-        lost_s = t - self._last_baro_ok_t_s
-        if p.baro_reset_after_s > 0.0 and lost_s >= p.baro_reset_after_s:
-            self._last_baro_ok_t_s = t
-            return ekf.reset_height("baro:reset", t, y, H, R, lost_s)
+        y, H, R = meas.baro_altitude(self.ekf, baro.altitude_m, self.params.meas_sigma.baro_m)
+        info, self._last_baro_ok_t_s = self._update_or_reset(
+            "baro", t, y, H, R, self._last_baro_ok_t_s, None, self.params.baro_reset_after_s, self.ekf.reset_height)
         return info
 
     def _update_or_reset(self, kind: str, t: float, y, H, R, last_ok_t_s: float | None,
-                         other_ok_t_s: float | None, reset_after_s: float) -> tuple[CorrectionInfo, float | None]:
-        """Fuse an absolute fix (GNSS or position fix) through the gate; when this source has
-        been rejected for reset_after_s (> 0), reset the filter to it (ErrorStateEKF.
-        reset_position), unless the OTHER absolute aid had a fix accepted in that time: then
+                         other_ok_t_s: float | None, reset_after_s: float,
+                         reset=None) -> tuple[CorrectionInfo, float | None]:
+        """Fuse an absolute fix (GNSS, position fix, barometric height) through the gate; when
+        this source has been rejected for reset_after_s (> 0), reset the filter to it (`reset`:
+        ErrorStateEKF.reset_position by default, reset_height for the barometer), unless the
+        OTHER absolute aid (None: there is none) had a fix accepted in that time: then
         the filter agrees with one source and the one it keeps rejecting is the faulty one (a
         spoofer, a matcher locked on the wrong place). Returns (info, this source's new
         last-accepted time)."""
@@ -433,7 +426,7 @@ class InsEkfNavigator(Navigator):
         lost_s = t - last_ok_t_s
         other_agrees = other_ok_t_s is not None and t - other_ok_t_s < reset_after_s
         if reset_after_s > 0.0 and lost_s >= reset_after_s and not other_agrees:
-            return self.ekf.reset_position(f"{kind}:reset", t, y, H, R, lost_s), t
+            return (reset or self.ekf.reset_position)(f"{kind}:reset", t, y, H, R, lost_s), t
         return info, last_ok_t_s
 
     def _require_init(self) -> None:
