@@ -25,7 +25,7 @@ from testbench.sensors.imu_params import ImuParams, ImuSpec, TriadSpec
 from testbench.sensors.noise import TriadNoise
 
 
-# In-loop samples whose random errors are drawn in one block (1 s at 128 Hz).
+# In-loop samples whose random errors are drawn in one block.
 _AHEAD_SAMPLES = 128
 
 

@@ -73,18 +73,20 @@ class MapSource:
         return data
 
     def read_local(self, north_min_m: float, north_max_m: float, east_min_m: float,
-                   east_max_m: float, gsd_m: float) -> LocalRaster:
+                   east_max_m: float, gsd_m: float, memoise: bool = True) -> LocalRaster:
         """Imagery on the local north-up grid covering the box, at gsd_m m per pixel.
 
         Grid: north0_m = north_max_m, east0_m = east_min_m, height = ceil(dN/gsd),
         width = ceil(dE/gsd). data (H, W, 3) uint8 RGB; valid False off-map and at nodata.
-        The last window is cached (same arguments -> same object).
+        The last window is cached (same arguments -> same object); with the process memo on
+        (world.memo) reads are kept between runs unless memoise is False (a caller that keeps
+        what it derives from the read instead).
         """
         key = (north_min_m, north_max_m, east_min_m, east_max_m, gsd_m)
         if self._cache is not None and self._cache[0] == key:
             return self._cache[1]
         self._cache = None  # the window this read replaces need not coexist with the new one
-        r = memo.cached(self.memo_key(*key), lambda: self._read(key))
+        r = memo.cached(self.memo_key(*key) if memoise else None, lambda: self._read(key))
         self._cache = (key, r)
         return r
 

@@ -98,7 +98,9 @@ class MapWindowCache:
         return LocalRaster(c.data[r0:r1, c0:c1], c.valid[r0:r1, c0:c1], c.north0_m - r0 * g, c.east0_m + c0 * g, g)
 
     def _read_grey(self, box, gsd_m: float) -> LocalRaster:
-        r = self.source.read_local(box[0], box[1], box[2], box[3], gsd_m)
+        # A source that memoises (MapSource) need not also keep the RGB read: the grey is kept.
+        extra = {"memoise": False} if hasattr(self.source, "memo_key") else {}
+        r = self.source.read_local(box[0], box[1], box[2], box[3], gsd_m, **extra)
         return LocalRaster(to_grey_u8(r.data), np.asarray(r.valid, bool), r.north0_m, r.east0_m, r.gsd_m)
 
     def features(self, window: LocalRaster, kind: str) -> np.ndarray | None:
