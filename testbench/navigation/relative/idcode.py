@@ -7,6 +7,14 @@ on range and exposure; no decision while the two clusters are not yet both seen.
 Decision: maximum a posteriori over the code book with a uniform prior and independent chip
 errors of probability p_chip: log L_k = sum over observations [match ? log(1-p) : log p].
 Missed frames are erasures (they just add nothing); confidence = posterior of the best word.
+
+Change of target: an image track can move from one vehicle to another (two neighbours on one
+line of sight merge into one blob and part again; the track may leave with the far one). Its
+window still holds a code cycle or two of the first vehicle's chips, which outvote the new
+ones for a second or more. `recent_posterior(n)` scores only the last n observations (the
+chips still thresholded over the whole window, so a jump in brightness, near to far, also
+reads as chips that contradict the old word): the tracker revokes an ID the recent chips
+contradict and `forget_older(n)` drops the old vehicle's chips.
 """
 
 from __future__ import annotations
@@ -71,12 +79,28 @@ class IdDecoder:
 
     def posterior(self) -> np.ndarray | None:
         """Posterior over vehicle indices (n_vehicles,), or None before two chip levels."""
-        if len(self.obs) < 2:
+        return self._posterior(len(self.obs))
+
+    def recent_posterior(self, n: int) -> np.ndarray | None:
+        """Posterior (n_vehicles,) from the chips of the last n observations alone (thresholded
+        over the whole window, module docstring); None with fewer than n observations."""
+        if len(self.obs) < n:
+            return None
+        return self._posterior(n)
+
+    def forget_older(self, n: int) -> None:
+        """Keep only the last n observations."""
+        while len(self.obs) > n:
+            self.obs.popleft()
+
+    def _posterior(self, last: int) -> np.ndarray | None:
+        if len(self.obs) < 2 or last < 1:
             return None
         fi = np.array([o[0] for o in self.obs])
         bits = chips_from_levels(np.array([o[1] for o in self.obs]), self.min_ratio)
         if bits is None:
             return None
+        fi, bits = fi[-last:], bits[-last:]
         lp, lq = np.log(1.0 - self.p), np.log(self.p)
         shifts = range(CODE_LENGTH) if self.search_phase else (0,)
         ll = np.full(len(self.book), -np.inf)

@@ -113,3 +113,32 @@ def test_own_rotation_is_compensated():
 
     assert run(True) == 1
     assert run(False) > 3
+
+
+def test_an_id_contradicted_by_the_last_code_cycle_is_revoked():
+    """A track that moves from vehicle 3 to vehicle 6 (blobs merged and parted) loses the ID 3
+    within one code cycle of vehicle 6's chips, then decodes 6; a few chip errors on a track
+    that stays on its vehicle never revoke its ID."""
+    L = led_code.CODE_LENGTH
+    tr = Tracker(n_vehicles=10, own_index=0, settings=TrackerSettings(n_init=1))
+    for k in range(2 * L):
+        tr.update(0.1 * k, k, [_det(500, 300, 40.0 * _level(3, k))])
+    (track,) = tr.tracks
+    assert track.id_index == 3
+    revoked_at = None
+    for k in range(2 * L, 5 * L):
+        tr.update(0.1 * k, k, [_det(500, 300, 40.0 * _level(6, k))])
+        if revoked_at is None and track.id_index != 3:
+            revoked_at = k - 2 * L
+    assert revoked_at is not None and revoked_at <= L
+    assert tr.counters["id_revoked"] + tr.counters["id_lost"] == 1
+    assert track.id_index == 6
+
+    rng = np.random.default_rng(5)
+    for trial in range(20):
+        tr = Tracker(n_vehicles=10, own_index=0, settings=TrackerSettings(n_init=1))
+        errors = set(rng.choice(np.arange(2 * L, 4 * L), 2, replace=False))
+        for k in range(4 * L):
+            level = _level(4, k) if k not in errors else 5.0 - _level(4, k)  # a flipped chip
+            tr.update(0.1 * k, k, [_det(500, 300, 40.0 * level)])
+        assert tr.tracks[0].id_index == 4 and tr.counters["id_revoked"] == 0
