@@ -14,7 +14,8 @@ claimed sigma of 1 m. Measurements:
   (sigma_px / f)^2 plus the attitude uncertainty mapped through (1 + m^2);
 - range: rho = |r + b| + n, b = R_nb (l_uwb_peer - l_uwb_self) (zero for one installation).
 Robustness to NLOS (a positive excess W >= 0 on the range): the normalised innovation squared
-is gated at the chi-square(1) quantile and rejected ranges are counted; after
+of a range longer than predicted is gated at the chi-square(1) quantile and rejected ranges
+are counted (a shorter one cannot be NLOS and is always fused); after
 `max_consecutive_rejects` in a row (the filter, not the range, is probably wrong) the next
 range is accepted with its noise inflated so that its NIS equals the gate (a bounded pull).
 """
@@ -164,7 +165,10 @@ class NeighbourFilter:
         y = np.array([float(range_m) - n])
         S = float((H @ self.P @ H.T + R)[0, 0])
         nis = float(y[0] ** 2 / S)
-        if self.s.robust and nis > self.gate1:
+        # NLOS only lengthens a range: a range much SHORTER than predicted is a line-of-sight
+        # range telling that the estimate has drifted, and is fused (rejecting it left one
+        # estimate 4.6 m long while its neighbour receded at 2.5 m/s).
+        if self.s.robust and nis > self.gate1 and y[0] > 0.0:
             self.consecutive_rejects += 1
             if self.consecutive_rejects <= self.s.max_consecutive_rejects:
                 self.counters["range_rejected"] += 1
@@ -172,8 +176,8 @@ class NeighbourFilter:
             # Persistent disagreement: accept softly (NIS brought down to the gate).
             R = R + (y[0] ** 2 / self.gate1 - S)
             self.counters["range_soft"] += 1
+        # (An accepted range says nothing of the direction: it leaves the bearing rejects count.)
         self.consecutive_rejects = 0
-        self.consecutive_bearing_rejects = 0
         self._update(y, H, R)
         self.counters["range_accepted"] += 1
         self.last_range_t_s = float(t_s)

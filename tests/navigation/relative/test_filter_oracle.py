@@ -122,3 +122,26 @@ def test_own_acceleration_is_taken_out_of_the_prediction():
     assert np.linalg.norm(with_v.x[:3] - truth) < 0.05
     assert np.allclose(with_v.x[3:], -a * 3.0)  # relative velocity: minus ours
     assert np.linalg.norm(without.x[:3] - truth) > 8.0
+
+
+def test_a_short_range_is_never_taken_for_nlos():
+    """NLOS lengthens ranges only: a range 5 m SHORTER than predicted (the estimate drifted) is
+    fused at once; one 5 m longer is rejected as NLOS."""
+    f = NeighbourFilter(0.0, [100.0, 0, 0], np.eye(3) * 0.01)
+    nis, ok = f.update_range(0.1, 95.0)
+    assert ok and nis > f.gate1 and f.counters["range_rejected"] == 0
+    assert np.linalg.norm(f.x[:3]) < 96.0  # pulled most of the 5 m (prior sigma 0.1 m, noise 0.1 m)
+    g = NeighbourFilter(0.0, [100.0, 0, 0], np.eye(3) * 0.01)
+    assert not g.update_range(0.1, 105.0)[1] and g.counters["range_rejected"] == 1
+
+
+def test_ranges_do_not_clear_the_bearing_rejects_count():
+    """Bearings rejected in a row stay counted while ranges are accepted in between (a range
+    says nothing of the direction; the aid restarts a neighbour on that count)."""
+    R_nc, c = MOUNT.R_bc, MOUNT.lever_arm_b_m
+    f = NeighbourFilter(0.0, [100.0, 0.0, 0.0], initial_covariance([100.0, 0.0, 0.0], 0.1, 0.001))
+    wrong = np.array([0.2, 0.0])  # 11 deg off the estimate's line of sight
+    for k in range(1, 6):
+        assert not f.update_bearing(0.1 * k, wrong, R_nc, c, F_PX)[1]
+        assert f.update_range(0.1 * k + 0.05, 100.0)[1]
+    assert f.consecutive_bearing_rejects == 5
