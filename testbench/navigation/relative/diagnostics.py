@@ -20,11 +20,18 @@ NAN = float("nan")
 
 
 def id_check(det: Detection | None, truths: Sequence[Any]) -> str | None:
-    """Id of the visible truth vehicle a detection belongs to: the nearest truth centre whose
-    box (grown by 3 px) contains the detection centre; None when none does."""
+    """Id of the visible truth vehicle a detection belongs to, None when none.
+
+    The detection centre inside the boxes of several vehicles (two neighbours on one line of
+    sight): the nearest in range, which is drawn over the other and gives the blob its pixels.
+    Inside no box: the nearest truth centre whose box grown by 3 px contains it."""
     if det is None:
         return None
     u, v = det.centre_px
+    inside = [t for t in truths if getattr(t, "visible", True)
+              and t.bbox_px[0] <= u <= t.bbox_px[2] and t.bbox_px[1] <= v <= t.bbox_px[3]]
+    if inside:
+        return min(inside, key=lambda t: getattr(t, "range_m", 0.0)).id
     best, best_d = None, np.inf
     for t in truths:
         if not getattr(t, "visible", True):

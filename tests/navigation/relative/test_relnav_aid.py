@@ -87,3 +87,21 @@ def test_a_neighbour_held_by_ranges_alone_is_forgotten():
         aid.process(UwbRange(0.1 * k, "n0", 50.0, -80.0), est)
     aid._drop_stale(6.0)
     assert "n0" not in aid.filters
+
+
+def test_id_check_scores_a_merged_blob_to_the_nearer_vehicle():
+    """Two neighbours on one line of sight: the detection centre lies in both boxes and the one
+    nearer in range (drawn over the other) owns the blob; apart, the box it lies in wins."""
+    from testbench.navigation.relative.diagnostics import id_check
+    from testbench.navigation.relative.types import Detection
+    from testbench.sensors.camera.types import VehicleTruth
+
+    def truth(name, u, v, half, rng_m):
+        return VehicleTruth(name, (u - half, v - half, u + half, v + half), np.array([u, v]), np.zeros((1, 2)),
+                            (True,), (True,), True, rng_m)
+
+    near, far = truth("near", 500.0, 300.0, 2.0, 100.0), truth("far", 500.6, 300.4, 1.0, 200.0)
+    det = Detection((499.0, 299.0, 502.0, 302.0), (500.5, 300.3), 1.0)
+    assert id_check(det, [far, near]) == "near"
+    apart = truth("far", 520.0, 300.0, 1.0, 200.0)
+    assert id_check(Detection((519, 299, 521, 301), (520.2, 300.1), 1.0), [near, apart]) == "far"
