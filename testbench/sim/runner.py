@@ -186,7 +186,21 @@ def _run_info(loaded: LoadedScenario, engine: Engine, world: RunWorld, result: E
         "world": scn.world.model_dump(exclude={"origin"}),
         "thresholds": {k: v.model_dump(exclude_none=True) for k, v in scn.thresholds.items()},
         "gnss_denied_windows": {v.id: _gnss_denied_windows(v.spec, result.sim_time_s) for v in engine.vehicles},
+        "aid_counters": _aid_counters(engine),
     }
+
+
+def _aid_counters(engine: Engine) -> dict[str, dict[str, dict[str, int]]]:
+    """vehicle id -> aid class -> its event counters (aids with all_counters(), e.g. relnav:
+    tracks born and revoked IDs, bearings fused, refused as ambiguous, filter resets), for
+    diagnosing a run without rerunning it."""
+    out: dict[str, dict[str, dict[str, int]]] = {}
+    for v in engine.vehicles:
+        for aid in v.aids:
+            counters = getattr(aid, "all_counters", None)
+            if callable(counters):
+                out.setdefault(v.id, {})[type(aid).__name__] = {k: int(n) for k, n in counters().items()}
+    return out
 
 
 def _gnss_denied_windows(vehicle_spec, sim_time_s: float) -> list[list[float]]:
