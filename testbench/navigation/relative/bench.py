@@ -62,6 +62,7 @@ class SimFrame:
 @dataclass
 class SimResult:
     errors_m: list = field(default_factory=list)        # |est - truth| per neighbour per frame (after settling)
+    sigmas_m: list = field(default_factory=list)        # the estimate's claimed sigma_m, same order (nan: none)
     frame_ms: list = field(default_factory=list)        # aid time per camera frame
     render_ms: list = field(default_factory=list)       # renderer time per camera frame
     render_px: list = field(default_factory=list)       # rendered pixels per camera frame
@@ -86,11 +87,15 @@ def ground_raster(seed: int = 0, size_px: int = 1024, gsd_m: float = 1.0) -> Loc
 def simulate_relnav(offsets_ned_m, duration_s: float = 4.0, width_px: int = 960, height_px: int = 540,
                     hfov_deg: float = 120.0, detector: dict | None = None, roi: bool = True, seed: int = 0,
                     att_error_deg: float = 0.05, nlos_every: int = 0, settle_s: float = 2.0,
-                    cameras=("front", "left", "right"), aid_params: dict | None = None) -> SimResult:
-    """Run the aid on rendered frames of neighbours at fixed NED offsets (m) from the observer.
+                    cameras=("front", "left", "right"), aid_params: dict | None = None,
+                    offset_rates_ned_mps=None) -> SimResult:
+    """Run the aid on rendered frames of neighbours at NED offsets (m) from the observer,
+    offsets_ned_m (n, 3) at t = 0 moving at offset_rates_ned_mps (n, 3; default still).
 
     The whole group flies north at 5 m/s 60 m above flat ground; the observer rolls/pitches
-    slightly (3 deg, 0.2 Hz). nlos_every: every n-th UWB range gets a +2..10 m NLOS excess."""
+    slightly (3 deg, 0.2 Hz). nlos_every: every n-th UWB range gets a +2..10 m NLOS excess.
+    res.errors_m holds, per frame after settle_s, each neighbour's error in turn (nan while
+    the aid reports no estimate of it)."""
     rng = np.random.default_rng(seed)
     ids = ("self",) + tuple(f"n{i}" for i in range(len(offsets_ned_m)))
     ctx = BuildContext("self", ids, ORIGIN, physics_rate_hz=100.0)
@@ -104,12 +109,14 @@ def simulate_relnav(offsets_ned_m, duration_s: float = 4.0, width_px: int = 960,
     aid = RelnavAid(RelnavAid.Params(**params), ctx=ctx, sensors=sensors, rng=np.random.default_rng(seed + 1))
     imagery = ground_raster(seed)
     opts = RenderOptions(noise_std=2.0, haze_visibility_m=40000.0)  # as the swarm scenarios' cameras
-    offs = np.asarray(offsets_ned_m, float)
+    offs0 = np.asarray(offsets_ned_m, float)
+    rates = np.zeros_like(offs0) if offset_rates_ned_mps is None else np.asarray(offset_rates_ned_mps, float)
     vel = np.array([5.0, 0.0, 0.0])
     res = SimResult()
     n_range = 0
     for k in range(int(round(duration_s * 10))):
         t = 0.1 * k
+        offs = offs0 + rates * t
         # UWB: one TDMA cycle (every peer once) in the 100 ms before the frame.
         for j, off in enumerate(offs):
             n_range += 1
@@ -145,6 +152,7 @@ def simulate_relnav(offsets_ned_m, duration_s: float = 4.0, width_px: int = 960,
             for j, off in enumerate(offs):
                 e = table.get(ids[j + 1])
                 res.errors_m.append(np.nan if e is None else float(np.linalg.norm(e.pos_ned_m - off)))
+                res.sigmas_m.append(np.nan if e is None else float(e.sigma_m))
     res.counters = aid.all_counters()
     res.table = aid.controller_input()
     return res
