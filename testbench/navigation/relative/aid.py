@@ -103,8 +103,9 @@ class RelnavAid(NavigationAid):
     (a neighbour whose bearings were rejected this many times in a row, or whose ranges were
     rejected filter.max_consecutive_rejects times in a row, restarts from the next bearing of a
     track with a decoded ID and the median of the recent ranges; on bearings alone only once
-    none has been accepted for reset_bearing_after_s), occlusion_margin_m (a bearing that a
-    neighbour's estimate this much nearer also predicts is left to that one: _ambiguous),
+    none has been accepted for reset_bearing_after_s), skip_ambiguous (leave bearings that
+    another neighbour's estimate claims: _ambiguous), occlusion_margin_m (a bearing that a
+    neighbour's estimate this much nearer also predicts is left to that one),
     log_rate_hz (rows of table "relnav"), led_reader (params of the LED detector that reads
     the blink level inside boxes from detectors without LED output, e.g. the CNN), seed (oracle noise when no rng is injected), roi,
     filter, tracker.
@@ -125,6 +126,7 @@ class RelnavAid(NavigationAid):
         reset_after_rejects: int = pydantic.Field(5, ge=1)
         reset_bearing_after_s: float = pydantic.Field(1.0, ge=0)
         occlusion_margin_m: float = pydantic.Field(10.0, ge=0)
+        skip_ambiguous: bool = True
         log_rate_hz: float = pydantic.Field(2.0, gt=0)
         led_reader: dict = {}
         seed: int = 0
@@ -288,7 +290,7 @@ class RelnavAid(NavigationAid):
                 f = self._start_filter(peer, t, cam, mount, R_nb, det.centre_px, att_sigma)
                 if f is None:
                     continue
-            why = self._ambiguous(peer, f, t, m_xy, R_nc, c_off, focal, att_sigma)
+            why = self._ambiguous(peer, f, t, m_xy, R_nc, c_off, focal, att_sigma) if self.params.skip_ambiguous else None
             if why is not None:
                 self.counters[f"bearings_{why}"] += 1
                 continue

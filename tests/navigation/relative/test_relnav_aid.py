@@ -105,3 +105,54 @@ def test_id_check_scores_a_merged_blob_to_the_nearer_vehicle():
     assert id_check(det, [far, near]) == "near"
     apart = truth("far", 520.0, 300.0, 1.0, 200.0)
     assert id_check(Detection((519, 299, 521, 301), (520.2, 300.1), 1.0), [near, apart]) == "far"
+
+
+def _aid_with_filters(offsets):
+    """A relnav aid (front camera, 1920 px, 120 deg) holding settled estimates of neighbours
+    at the given NED offsets (m), the observer level and heading north."""
+    from testbench.core.camera_geometry import CameraMount, PinholeCamera, mount_rotation
+    from testbench.core.interfaces import BuildContext
+    from testbench.navigation.relative.aid import RelnavAid
+    from testbench.navigation.relative.bench import ORIGIN, _Camera, _Uwb
+    from testbench.navigation.relative.neighbour_filter import NeighbourFilter
+
+    cam = PinholeCamera.from_hfov(1920, 1080, 120.0)
+    mount = CameraMount(mount_rotation(0.0, 0.0, 0.0), np.zeros(3))
+    ids = ("self",) + tuple(offsets)
+    aid = RelnavAid(RelnavAid.Params(cameras=["front"]), ctx=BuildContext("self", ids, ORIGIN, physics_rate_hz=100.0),
+                    sensors={"front": _Camera(cam, mount), "uwb": _Uwb()})
+    for name, off in offsets.items():
+        f = NeighbourFilter(1.0, off, np.eye(3) * 0.04)
+        f.counters["bearing_accepted"] = 20
+        f.last_bearing_t_s = 1.0
+        aid.filters[name] = f
+    return aid, mount.R_bc, cam.fx
+
+
+def _m(off):
+    d = np.asarray(off, float)  # camera frame of a level camera looking north: x east, y down, z north
+    return np.array([d[1] / d[0], d[2] / d[0]])
+
+
+def test_a_bearing_a_nearer_neighbour_claims_is_left_to_it():
+    """Three neighbours on one line of sight (the arrowhead's lattice): a blob identified as the
+    far one is where the near one's estimate predicts a bearing, so it is not fused as the far
+    one's; the near one's own bearing is fused; a neighbour off that line is unaffected."""
+    offs = {"near": (100.0, 0.0, 0.0), "far": (200.0, 0.4, 0.0), "side": (100.0, 60.0, 0.0)}
+    aid, R_nc, f_px = _aid_with_filters(offs)
+    args = (1.05, _m(offs["near"]), R_nc, np.zeros(3), f_px, 0.0)
+    assert aid._ambiguous("far", aid.filters["far"], *args) == "occluded"
+    assert aid._ambiguous("near", aid.filters["near"], *args) is None
+    side = (1.05, _m(offs["side"]), R_nc, np.zeros(3), f_px, 0.0)
+    assert aid._ambiguous("side", aid.filters["side"], *side) is None
+
+
+def test_a_bearing_another_neighbour_predicts_better_is_not_fused():
+    """Two neighbours at the same range 3 m apart: a track still carrying A's ID that now sits on
+    B's line of sight (its blob parted with the other vehicle) is B's, not A's."""
+    offs = {"a": (100.0, 0.0, 0.0), "b": (100.0, 3.0, 0.0)}
+    aid, R_nc, f_px = _aid_with_filters(offs)
+    aid.filters["a"].P[:3, :3] = np.eye(3) * 4.0  # A's estimate wide enough to gate B's bearing
+    on_b = (1.05, _m(offs["b"]), R_nc, np.zeros(3), f_px, 0.0)
+    assert aid._ambiguous("a", aid.filters["a"], *on_b) == "closer_to_other"
+    assert aid._ambiguous("b", aid.filters["b"], *on_b) is None
