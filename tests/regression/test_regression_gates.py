@@ -13,9 +13,10 @@ Left out, with the reason:
 - swarm_fixedwing, swarm_canyon_nlos: studies without thresholds (they report figures).
 
 Known failures, kept visible (measured 2026-11-24): paper_swarm_relnav does not meet its gates
-yet (15 s: relnav.error_m.max 7.2 m against 0.4, mean 0.37 m against 0.15, IDs 0.89 against
-0.99, formation.error_m.rms 3.5 m against 2: wrong LED IDs where the arrowhead's edges put
-neighbours on one line of sight);
+yet (15 s: relnav.error_m.max 7.1 m against 0.4, mean 0.30 m against 0.15, IDs 0.93 against
+0.99, formation.error_m.rms 3.5 m against 2: the arrowhead's lattice puts three or four vehicles
+on one line of sight, their LED blobs merge and part, and one estimate is held on a parted
+neighbour's line of sight for a few seconds);
 lowalt_ismn_150m loses the scene match for tens of seconds after the multirotor's attitude changes
 at the corners (120 s: fix rate 0.86 against 0.95; ismn mean inside its 4.6 m): the consumer
 IMU's scale-factor and cross-axis errors leave tilt errors of 3-4 deg; the filter now widens its
@@ -50,7 +51,7 @@ GATED = {
 
 KNOWN_FAILING = {
     "lowalt_ismn_150m": "fix rate 0.86 against 0.95 in 120 s: the match is lost for tens of seconds after the corner at 90 s, where the consumer IMU's errors leave 3-4 deg of tilt error",
-    "paper_swarm_relnav": "relative navigation and formation gates not met yet (15 s: relnav max 7.2 m, mean 0.37 m, IDs 0.89, formation rms 3.5 m)",
+    "paper_swarm_relnav": "relative navigation and formation gates not met yet (15 s: relnav max 7.1 m, mean 0.30 m, IDs 0.93, formation rms 3.5 m)",
 }
 
 
