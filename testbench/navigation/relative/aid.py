@@ -24,6 +24,7 @@ from testbench.core.interfaces import BuildContext, NavigationAid
 from testbench.core.messages import NavEstimate, UwbRange
 from testbench.core.registry import ParamsModel, build, register
 from testbench.core.rotations import quat_to_dcm, rotvec_to_quat
+from testbench.navigation.relative.association import AssociationRules, Bearing
 from testbench.navigation.relative.detectors import LedDetector
 from testbench.navigation.relative.diagnostics import RelnavDiagnostics, id_check
 from testbench.navigation.relative.frames import camera_model, frame_camera_name, frame_parts, is_camera_frame
@@ -105,7 +106,7 @@ class RelnavAid(NavigationAid):
     rejected filter.max_consecutive_rejects times in a row, restarts from the next bearing of a
     track with a decoded ID and the median of the recent ranges; on bearings alone only once
     none has been accepted for reset_bearing_after_s), skip_ambiguous (leave bearings that
-    another neighbour's estimate claims: _ambiguous), occlusion_margin_m (a bearing that a
+    another neighbour's estimate claims: association.py), occlusion_margin_m (a bearing that a
     neighbour's estimate this much nearer also predicts is left to that one),
     log_rate_hz (rows of table "relnav"), led_reader (params of the LED detector that reads
     the blink level inside boxes from detectors without LED output, e.g. the CNN), seed (oracle noise when no rng is injected), roi,
@@ -170,6 +171,8 @@ class RelnavAid(NavigationAid):
                              id_keep_prob=tp.id_keep_prob)
         self.trackers = {n: Tracker(len(self.ids), self.own_index, ts) for n in params.cameras}
         self.fset = FilterSettings(**params.filter.model_dump())
+        self.assoc = AssociationRules(self.fset.bearing_sigma_px, params.assoc_max_sigma_m, params.report_max_age_s,
+                                      params.occlusion_margin_m)
         self.filters: dict[str, NeighbourFilter] = {}
         self.id_conf: dict[str, float] = {}
         self.last_range: dict[str, tuple[float, float]] = {}
@@ -256,8 +259,15 @@ class RelnavAid(NavigationAid):
                     diag.id_rows.append(dict(t_s=t, camera=name, track_id=tr.track_id, decoded_id=peer, truth_id=truth_id,
                                              id_correct=float(peer == truth_id), id_confidence=tr.id_confidence))
             m_xy = undistort_normalized(cam, [det.centre_px])[0]
+            bearing = Bearing(t, m_xy, R_nc, c_off, focal, att_sigma)
             if peer is None and self.params.predicted_association:
-                peer = self._predicted_peer(t, m_xy, R_nc, c_off, focal, att_sigma, claimed)
+                # Not a neighbour some track in any camera carries as its decoded ID: the ID is
+                # the stronger evidence, and an estimate that lost its neighbour (it rejects
+                # that track's bearings) would be held on the wrong vehicle by the unidentified
+                # tracks it still gates, never reaching its reset (17 m in a 15 s swarm run).
+                decoded = {self.ids[x.id_index] for trk in self.trackers.values() for x in trk.tracks
+                           if x.confirmed and x.id_index is not None}
+                peer = self.assoc.predicted_peer(self.filters, bearing, claimed | decoded)
                 if peer is not None:
                     self.counters["predicted_assoc"] += 1
             if peer is None or peer in claimed:
@@ -283,15 +293,13 @@ class RelnavAid(NavigationAid):
                 # A track whose bearing is where another neighbour's healthy estimate (a bearing
                 # fused less than report_max_age_s ago) predicts one is most likely that
                 # neighbour under a stale ID: do not (re)start from it.
-                if any(self._bearing_gates(g, t, m_xy, R_nc, c_off, focal, att_sigma)
-                       for other, g in self.filters.items()
-                       if other != peer and t - g.last_bearing_t_s < self.params.report_max_age_s):
+                if self.assoc.claimed_by_other(peer, self.filters, bearing):
                     self.counters["restarts_refused"] += 1
                     continue
                 f = self._start_filter(peer, t, cam, mount, R_nb, det.centre_px, att_sigma)
                 if f is None:
                     continue
-            why = self._ambiguous(peer, f, t, m_xy, R_nc, c_off, focal, att_sigma) if self.params.skip_ambiguous else None
+            why = self.assoc.ambiguity(peer, self.filters, bearing) if self.params.skip_ambiguous else None
             if why is not None:
                 self.counters[f"bearings_{why}"] += 1
                 continue
@@ -335,69 +343,6 @@ class RelnavAid(NavigationAid):
         self.filters[peer] = f
         log.debug("%s: relnav filter for %s started at %.2f s", self.self_id, peer, t)
         return f
-
-    def _predicted_peer(self, t, m_xy, R_nc, c_off, focal, att_sigma, claimed) -> str | None:
-        """The one neighbour whose predicted line of sight gates with this bearing, if unique.
-        Neighbours that a track in any camera carries as its decoded ID are not candidates: the
-        ID is the stronger evidence, and an estimate that has lost its neighbour (it rejects
-        that track's bearings) would otherwise be held on the wrong vehicle by the unidentified
-        tracks it still gates, never reaching its reset (a 17 m error in the 15 s swarm run)."""
-        decoded = {self.ids[tr.id_index] for trk in self.trackers.values() for tr in trk.tracks
-                   if tr.confirmed and tr.id_index is not None}
-        hits = [peer for peer, f in self.filters.items()
-                if peer not in claimed and peer not in decoded and self._bearing_gates(f, t, m_xy, R_nc, c_off, focal, att_sigma)]
-        return hits[0] if len(hits) == 1 else None
-
-    def _ambiguous(self, peer, f: NeighbourFilter, t, m_xy, R_nc, c_off, focal, att_sigma) -> str | None:
-        """Why a bearing identified as `peer` should not be fused as that neighbour's, or None.
-
-        "occluded": a healthy estimate (a bearing fused within report_max_age_s, settled) of a
-        neighbour more than occlusion_margin_m nearer also predicts it. In the arrowhead three
-        or four vehicles stand on one line (the triangular lattice): the far ones' LEDs are
-        hidden in, or merged with, the near one's blob, whose centre is the near one's bearing;
-        fused as a far one's it drags that estimate onto the near one's line of sight as they
-        part. Such a bearing is left to the near one; the far ones coast on their ranges.
-        "closer_to_other": another healthy estimate predicts it better (smaller normalised
-        innovation) than this neighbour's: when blobs merge and part, a track can leave with
-        the other vehicle under the old ID for a second until its chips revoke it (tracking)."""
-        d2_own = self._bearing_d2(f, t, m_xy, R_nc, c_off, focal, att_sigma, settled_only=False)
-        rho = float(np.linalg.norm(f.x[:3]))
-        for other, g in self.filters.items():
-            if other == peer or t - g.last_bearing_t_s >= self.params.report_max_age_s:
-                continue
-            d2 = self._bearing_d2(g, t, m_xy, R_nc, c_off, focal, att_sigma)
-            if d2 > g.gate2:
-                continue
-            if float(np.linalg.norm(g.x[:3])) < rho - self.params.occlusion_margin_m:
-                return "occluded"
-            if d2 < d2_own:
-                return "closer_to_other"
-        return None
-
-    def _bearing_gates(self, f: NeighbourFilter, t, m_xy, R_nc, c_off, focal, att_sigma) -> bool:
-        """Whether a settled filter (10 bearings fused, position sigma below assoc_max_sigma_m)
-        predicts this bearing (normalised image coordinates m_xy) within its gate."""
-        return self._bearing_d2(f, t, m_xy, R_nc, c_off, focal, att_sigma) <= f.gate2
-
-    def _bearing_d2(self, f: NeighbourFilter, t, m_xy, R_nc, c_off, focal, att_sigma, settled_only: bool = True) -> float:
-        """Normalised innovation squared of this bearing (normalised image coordinates m_xy)
-        against f's prediction at t; inf when f is not in front of the camera or, with
-        settled_only, not settled (10 bearings fused, position sigma below assoc_max_sigma_m)."""
-        if settled_only and f.counters["bearing_accepted"] < 10:
-            return float("inf")
-        dt = max(t - f.t_s, 0.0)
-        x = f.x[:3] + dt * f.x[3:]
-        P = f.P[:3, :3] + dt * (f.P[:3, 3:] + f.P[3:, :3]) + dt * dt * f.P[3:, 3:]
-        if settled_only and np.sqrt(max(np.trace(P), 0.0)) > self.params.assoc_max_sigma_m:
-            return float("inf")
-        d = (x - c_off) @ R_nc
-        if d[2] <= 0.2 * np.linalg.norm(d):
-            return float("inf")  # not in front of this camera
-        R = np.eye(2) * ((self.fset.bearing_sigma_px / focal) ** 2 + att_sigma**2)
-        h, H = f.bearing_model(R_nc, c_off)
-        S = H @ f.P @ H.T + R
-        y = m_xy - np.array([d[0] / d[2], d[1] / d[2]])
-        return float(y @ np.linalg.solve(S, y))
 
     def _drop_stale(self, t: float) -> None:
         """Forget neighbours without a bearing for stale_after_s. Ranges alone keep only the

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from testbench.core import registry
+from testbench.navigation.relative.association import Bearing
 from testbench.navigation.relative.bench import simulate_relnav
 
 OFFSETS = [(40.0, 10.0, 0.0), (0.0, 50.0, -3.0), (5.0, -45.0, 2.0)]
@@ -140,11 +141,11 @@ def test_a_bearing_a_nearer_neighbour_claims_is_left_to_it():
     one's; the near one's own bearing is fused; a neighbour off that line is unaffected."""
     offs = {"near": (100.0, 0.0, 0.0), "far": (200.0, 0.4, 0.0), "side": (100.0, 60.0, 0.0)}
     aid, R_nc, f_px = _aid_with_filters(offs)
-    args = (1.05, _m(offs["near"]), R_nc, np.zeros(3), f_px, 0.0)
-    assert aid._ambiguous("far", aid.filters["far"], *args) == "occluded"
-    assert aid._ambiguous("near", aid.filters["near"], *args) is None
-    side = (1.05, _m(offs["side"]), R_nc, np.zeros(3), f_px, 0.0)
-    assert aid._ambiguous("side", aid.filters["side"], *side) is None
+    on_near = Bearing(1.05, _m(offs["near"]), R_nc, np.zeros(3), f_px, 0.0)
+    assert aid.assoc.ambiguity("far", aid.filters, on_near) == "occluded"
+    assert aid.assoc.ambiguity("near", aid.filters, on_near) is None
+    on_side = Bearing(1.05, _m(offs["side"]), R_nc, np.zeros(3), f_px, 0.0)
+    assert aid.assoc.ambiguity("side", aid.filters, on_side) is None
 
 
 def test_a_bearing_another_neighbour_predicts_better_is_not_fused():
@@ -153,6 +154,10 @@ def test_a_bearing_another_neighbour_predicts_better_is_not_fused():
     offs = {"a": (100.0, 0.0, 0.0), "b": (100.0, 3.0, 0.0)}
     aid, R_nc, f_px = _aid_with_filters(offs)
     aid.filters["a"].P[:3, :3] = np.eye(3) * 4.0  # A's estimate wide enough to gate B's bearing
-    on_b = (1.05, _m(offs["b"]), R_nc, np.zeros(3), f_px, 0.0)
-    assert aid._ambiguous("a", aid.filters["a"], *on_b) == "closer_to_other"
-    assert aid._ambiguous("b", aid.filters["b"], *on_b) is None
+    on_b = Bearing(1.05, _m(offs["b"]), R_nc, np.zeros(3), f_px, 0.0)
+    assert aid.assoc.ambiguity("a", aid.filters, on_b) == "closer_to_other"
+    assert aid.assoc.ambiguity("b", aid.filters, on_b) is None
+    # An undecoded track on B's line of sight is fed to B by predicted association (A's wide
+    # estimate is not settled), unless B is excluded (claimed, or decoded on another track).
+    assert aid.assoc.predicted_peer(aid.filters, on_b, set()) == "b"
+    assert aid.assoc.predicted_peer(aid.filters, on_b, {"b"}) is None
