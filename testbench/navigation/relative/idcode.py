@@ -79,28 +79,32 @@ class IdDecoder:
 
     def posterior(self) -> np.ndarray | None:
         """Posterior over vehicle indices (n_vehicles,), or None before two chip levels."""
-        return self._posterior(len(self.obs))
+        return self.posteriors(0)[0]
 
     def recent_posterior(self, n: int) -> np.ndarray | None:
         """Posterior (n_vehicles,) from the chips of the last n observations alone (thresholded
         over the whole window, module docstring); None with fewer than n observations."""
-        if len(self.obs) < n:
-            return None
-        return self._posterior(n)
+        return self.posteriors(n)[1]
+
+    def posteriors(self, n: int) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """(posterior over the whole window, posterior over its last n observations) from one
+        thresholding of the levels; the second is None when n < 1 or fewer than n are held."""
+        if len(self.obs) < 2:
+            return None, None
+        fi = np.array([o[0] for o in self.obs])
+        bits = chips_from_levels(np.array([o[1] for o in self.obs]), self.min_ratio)
+        if bits is None:
+            return None, None
+        recent = self._likelihood_posterior(fi[-n:], bits[-n:]) if 1 <= n <= len(fi) else None
+        return self._likelihood_posterior(fi, bits), recent
 
     def forget_older(self, n: int) -> None:
         """Keep only the last n observations."""
         while len(self.obs) > n:
             self.obs.popleft()
 
-    def _posterior(self, last: int) -> np.ndarray | None:
-        if len(self.obs) < 2 or last < 1:
-            return None
-        fi = np.array([o[0] for o in self.obs])
-        bits = chips_from_levels(np.array([o[1] for o in self.obs]), self.min_ratio)
-        if bits is None:
-            return None
-        fi, bits = fi[-last:], bits[-last:]
+    def _likelihood_posterior(self, fi: np.ndarray, bits: np.ndarray) -> np.ndarray:
+        """Posterior over the code book of chips `bits` seen at LED frames `fi`."""
         lp, lq = np.log(1.0 - self.p), np.log(self.p)
         shifts = range(CODE_LENGTH) if self.search_phase else (0,)
         ll = np.full(len(self.book), -np.inf)

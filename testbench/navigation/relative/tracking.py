@@ -231,9 +231,8 @@ class Tracker:
 
     def _observe_id(self, tr: Track, frame_index: int, det: Detection) -> None:
         tr.decoder.observe(frame_index, det.led_level)
-        post = tr.decoder.posterior()
+        post, recent = tr.decoder.posteriors(self.s.revoke_window if tr.id_index is not None else 0)
         if tr.id_index is not None:
-            recent = tr.decoder.recent_posterior(self.s.revoke_window) if self.s.revoke_window > 0 else None
             if recent is not None and recent[tr.id_index] < self.s.revoke_prob:
                 # The last code cycle contradicts the ID: the track has moved to another vehicle.
                 self.counters["id_revoked"] += 1
