@@ -248,6 +248,12 @@ class RelnavAid(NavigationAid):
         focal = 0.5 * (cam.fx + cam.fy)
         diag = RelnavDiagnostics(t)
         claimed: set[str] = set()
+        # Predicted association never feeds a neighbour some track in any camera carries as its
+        # decoded ID: the ID is the stronger evidence, and an estimate that lost its neighbour
+        # (it rejects that track's bearings) would be held on the wrong vehicle by the
+        # unidentified tracks it still gates, never reaching its reset (17 m in a 15 s run).
+        decoded = {self.ids[x.id_index] for trk in self.trackers.values() for x in trk.tracks
+                   if x.confirmed and x.id_index is not None}
         for tr in sorted((x for x in updated if x.confirmed), key=lambda x: -x.id_confidence):
             det = tr.last_detection
             peer = self.ids[tr.id_index] if tr.id_index is not None else None
@@ -261,12 +267,6 @@ class RelnavAid(NavigationAid):
             m_xy = undistort_normalized(cam, [det.centre_px])[0]
             bearing = Bearing(t, m_xy, R_nc, c_off, focal, att_sigma)
             if peer is None and self.params.predicted_association:
-                # Not a neighbour some track in any camera carries as its decoded ID: the ID is
-                # the stronger evidence, and an estimate that lost its neighbour (it rejects
-                # that track's bearings) would be held on the wrong vehicle by the unidentified
-                # tracks it still gates, never reaching its reset (17 m in a 15 s swarm run).
-                decoded = {self.ids[x.id_index] for trk in self.trackers.values() for x in trk.tracks
-                           if x.confirmed and x.id_index is not None}
                 peer = self.assoc.predicted_peer(self.filters, bearing, claimed | decoded)
                 if peer is not None:
                     self.counters["predicted_assoc"] += 1
