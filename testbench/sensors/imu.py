@@ -8,6 +8,14 @@ b turn-on bias, G gyro g-sensitivity, n(t) the random processes of `noise.TriadN
 flicker bank, rate random walk), sat clipping at the range, Q rounding to the LSB.
 f_imu = f_cg + dw/dt x r + w x (w x r): the accelerometer at lever arm r from the CG.
 
+The true rate w is the MEAN inertial rate over the sample interval, from the truth attitudes at
+this sample and the previous one (`mean_rate_ib_b`), as a real IMU's integrated angle increments
+are. Not the instantaneous rate read after the step: JSBSim's integrator moves the attitude over
+a step with a rate other than the one it reports at the step's end, so a perfect gyro sampling
+that rate put the INS 1.9 mrad ahead in heading through a 30 deg bank turn (the heading rate
+times one physics step) and 1.2 mrad ahead in roll at roll-in; the filter then took these for
+gyro biases, the same way in every run (measured on paper_ismn_800m with a noiseless IMU).
+
 `ImuErrorModel.apply` is vectorised over samples (the static record, `imu_static`, calls it with
 blocks of many); the in-loop `Imu` sensor calls its scalar twin `apply_one` sample by sample,
 which draws the random errors in blocks ahead: the same draws and recursions.
@@ -15,8 +23,11 @@ which draws the random errors in blocks ahead: the same draws and recursions.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
+from testbench.core.geodesy import A_M, E2, OMEGA_IE_RPS
 from testbench.core.interfaces import BuildContext, WorldView
 from testbench.core.messages import ImuSample, TruthState
 from testbench.core.registry import register
@@ -121,6 +132,43 @@ class ImuErrorModel:
         return np.array(w_meas), np.array(f_meas)
 
 
+def mean_rate_ib_b(q0_nb, q1_nb, dt_s: float, lat_rad: float, h_m: float, vel_ned_mps) -> tuple[float, float, float]:
+    """Mean body rate relative to inertial space (rad/s, body FRD) over an interval of dt_s
+    that turned the attitude q_nb (w, x, y, z; body -> NED) from q0_nb to q1_nb.
+
+    C_ib(t1) = C_in(t1) C_nb(t1): the body's increment is the rotation vector of q0* q1 (relative
+    to NED) plus NED's own rotation w_in = w_ie + w_en (Earth rate and transport rate at the end
+    point) resolved in the body; the neglected terms are products of two increments (w_in dt is
+    below 1e-6 rad per step). Scalar floats: it runs per sample for every vehicle."""
+    aw, ax, ay, az = (float(v) for v in q0_nb)
+    bw, bx, by, bz = (float(v) for v in q1_nb)
+    # q0* q1 (Hamilton, scalar first)
+    w = aw * bw + ax * bx + ay * by + az * bz
+    x = aw * bx - ax * bw - ay * bz + az * by
+    y = aw * by + ax * bz - ay * bw - az * bx
+    z = aw * bz - ax * by + ay * bx - az * bw
+    if w < 0.0:
+        w, x, y, z = -w, -x, -y, -z
+    s = math.sqrt(x * x + y * y + z * z)
+    k = 2.0 * math.atan2(s, w) / s if s > 1e-12 else 2.0
+    # NED's rotation rate w_in (NED axes), then into the body with C_bn = C_nb(q1)^T.
+    sl, cl = math.sin(lat_rad), math.cos(lat_rad)
+    w2 = 1.0 - E2 * sl * sl
+    r_n = A_M / math.sqrt(w2)
+    r_m = r_n * (1.0 - E2) / w2
+    vn, ve = float(vel_ned_mps[0]), float(vel_ned_mps[1])
+    wn = OMEGA_IE_RPS * cl + ve / (r_n + h_m)
+    we = -vn / (r_m + h_m)
+    wd = -OMEGA_IE_RPS * sl - ve * sl / cl / (r_n + h_m)
+    c00, c01, c02 = 1 - 2 * (by * by + bz * bz), 2 * (bx * by - bw * bz), 2 * (bx * bz + bw * by)
+    c10, c11, c12 = 2 * (bx * by + bw * bz), 1 - 2 * (bx * bx + bz * bz), 2 * (by * bz - bw * bx)
+    c20, c21, c22 = 2 * (bx * bz - bw * by), 2 * (by * bz + bw * bx), 1 - 2 * (bx * bx + by * by)
+    inv_dt = 1.0 / dt_s
+    return (k * x * inv_dt + c00 * wn + c10 * we + c20 * wd,
+            k * y * inv_dt + c01 * wn + c11 * we + c21 * wd,
+            k * z * inv_dt + c02 * wn + c12 * we + c22 * wd)
+
+
 @register("sensor", "imu")
 class Imu(CachedSensor):
     """In-loop IMU sampling the truth at rate_hz; returns ImuSample."""
@@ -137,9 +185,16 @@ class Imu(CachedSensor):
         self._prev_w: np.ndarray | None = None
         self._has_lever_arm = bool(np.any(self.spec.lever_arm_b_m))
         self._prev_t = 0.0
+        self._prev_q: np.ndarray | None = None
 
     def _sample(self, truth: TruthState, world: WorldView, rng: np.random.Generator) -> ImuSample:
-        w = truth.omega_ib_b_rps
+        # The mean rate since the previous sample (the first sample has none: the instantaneous).
+        if self._prev_q is not None and truth.t_s > self._prev_t:
+            w = mean_rate_ib_b(self._prev_q, truth.q_nb_wxyz, truth.t_s - self._prev_t, truth.lat_rad,
+                               truth.alt_m, truth.vel_ned_mps)
+        else:
+            w = truth.omega_ib_b_rps
+        self._prev_q = truth.q_nb_wxyz
         f = truth.f_b_mps2
         r = self.spec.lever_arm_b_m
         if self._has_lever_arm:

@@ -9,7 +9,9 @@ from testbench.core.interfaces import BuildContext
 from testbench.core.registry import build
 from testbench.sensors.allan import analyse_record
 from testbench.sensors.fakes import ORIGIN, FakeWorld, make_truth
-from testbench.sensors.imu import Imu, ImuErrorModel
+from testbench.core.rotations import euler_to_quat, quat_multiply, quat_to_dcm, rotvec_to_quat
+from testbench.core.geodesy import transport_rate_ned_rps
+from testbench.sensors.imu import Imu, ImuErrorModel, mean_rate_ib_b
 from testbench.sensors.imu_params import ImuParams
 from testbench.sensors.imu_static import COLUMNS, static_record
 from testbench.sensors.noise import TriadNoise
@@ -151,10 +153,10 @@ def test_lever_arm_centripetal():
     p = ImuParams(preset="tactical", lever_arm_b_m=(1.0, 0.0, 0.0), accel_vrw_mps_rth=0.0, accel_bias_instability_ug=0.0, **QUIET)
     imu = Imu(p, ctx=CTX)
     rng, w = np.random.default_rng(0), FakeWorld()
-    wz = 1.0  # rad/s yaw rate: centripetal -wz^2 r on x
+    wz = 1.0  # rad/s yaw rate: centripetal -wz^2 r on x (the heading turns with it)
     for k in range(1, 4):
-        s = imu.measure(make_truth(k / 100.0, omega_eb_b_rps=(0.0, 0.0, wz)), w, rng)
-    truth = make_truth(0.03, omega_eb_b_rps=(0.0, 0.0, wz))
+        s = imu.measure(make_truth(k / 100.0, rpy_rad=(0.0, 0.0, wz * k / 100.0), omega_eb_b_rps=(0.0, 0.0, wz)), w, rng)
+    truth = make_truth(0.03, rpy_rad=(0.0, 0.0, 0.03 * wz), omega_eb_b_rps=(0.0, 0.0, wz))
     wib = truth.omega_ib_b_rps
     expected = truth.f_b_mps2 + np.cross(wib, np.cross(wib, [1.0, 0, 0]))
     np.testing.assert_allclose(s.f_ib_b_mps2, expected, atol=1e-3)
@@ -171,3 +173,33 @@ def test_params_presets_overrides_and_errors():
         build("sensor", "imu", {"gyro_arw_deg_rh": 1.0}, "vehicles.uav0.sensors.imu", ctx=CTX)
     with pytest.raises(InputError, match="rate_hz"):
         build("sensor", "imu", {"rate_hz": 30.0}, "imu", ctx=CTX)
+
+
+def test_mean_rate_is_the_rotation_between_attitudes_plus_the_ned_rate():
+    q0 = euler_to_quat(np.array([0.3, -0.1, 2.0]))
+    w_nb_b = np.array([0.2, -0.5, 0.9])  # body rate relative to NED (rad/s)
+    dt = 0.01
+    q1 = quat_multiply(q0, rotvec_to_quat(w_nb_b * dt))
+    lat, h, v = np.deg2rad(47.0), 1300.0, np.array([20.0, -15.0, 1.0])
+    w_in_n = earth_rate_ned_rps(lat) + transport_rate_ned_rps(lat, h, v)
+    got = np.array(mean_rate_ib_b(q0, q1, dt, lat, h, v))
+    np.testing.assert_allclose(got, w_nb_b + quat_to_dcm(q1).T @ w_in_n, atol=1e-9)
+
+
+def test_gyro_reads_the_rate_that_moved_the_attitude_not_the_one_reported_after_it():
+    # A JSBSim-like truth: each step turns the heading with the rate at the step's START
+    # (rectangular Euler), and the truth then reports the new rate. A noiseless gyro must give
+    # the increment's rate, so that an INS integrating it stays on the truth attitude.
+    quiet = dict(QUIET, gyro_arw_deg_rth=0.0, gyro_bias_instability_deg_h=0.0, gyro_lsb_deg_s=0.0)
+    imu = Imu(ImuParams(preset="tactical", rate_hz=100.0, **quiet), ctx=CTX)
+    rng, world = np.random.default_rng(0), FakeWorld()
+    yaw, rate = 0.0, 0.0
+    for k in range(1, 50):
+        prev_rate = rate
+        yaw += prev_rate * 0.01
+        rate = 0.02 * k  # a roll-in: the yaw rate ramps up
+        s = imu.measure(make_truth(k / 100.0, rpy_rad=(0.0, 0.0, yaw), omega_eb_b_rps=(0.0, 0.0, rate)), world, rng)
+        if k > 1:
+            earth_z = (quat_to_dcm(euler_to_quat(np.array([0.0, 0.0, yaw]))).T @ earth_rate_ned_rps(ORIGIN.lat_rad))[2]
+            assert s.omega_ib_b_rps[2] == pytest.approx(prev_rate + earth_z, abs=1e-7)
+            assert abs(s.omega_ib_b_rps[2] - (rate + earth_z)) > 0.019  # not the reported rate
