@@ -11,6 +11,7 @@ Nothing here reads another vehicle's state: only this vehicle's sensors and esti
 from __future__ import annotations
 
 import logging
+import math
 import zlib
 from dataclasses import replace
 from typing import Any
@@ -105,7 +106,12 @@ class RelnavAid(NavigationAid):
     (a neighbour whose bearings were rejected this many times in a row, or whose ranges were
     rejected filter.max_consecutive_rejects times in a row, restarts from the next bearing of a
     track with a decoded ID and the median of the recent ranges; on bearings alone only once
-    none has been accepted for reset_bearing_after_s), skip_ambiguous (leave bearings that
+    none has been accepted for reset_bearing_after_s, and not when the restart would move the
+    neighbour more than restart_max_jump_m + 3 sigma from its prediction: a track under a wrong
+    ID, since at 100 m spacing a real lost estimate is off by tens of metres, not a vehicle
+    spacing or more; a really lost estimate is then dropped after stale_after_s and restarted
+    afresh, within the same distance, plus forgotten_speed_mps per second since, of where it
+    was when dropped, for forgotten_max_age_s), skip_ambiguous (leave bearings that
     another neighbour's estimate claims: association.py), occlusion_margin_m (a bearing that a
     neighbour's estimate this much nearer also predicts is left to that one),
     log_rate_hz (rows of table "relnav"), led_reader (params of the LED detector that reads
@@ -127,6 +133,9 @@ class RelnavAid(NavigationAid):
         assoc_max_sigma_m: float = pydantic.Field(1.0, gt=0)
         reset_after_rejects: int = pydantic.Field(5, ge=1)
         reset_bearing_after_s: float = pydantic.Field(1.0, ge=0)
+        restart_max_jump_m: float = pydantic.Field(30.0, gt=0)
+        forgotten_max_age_s: float = pydantic.Field(30.0, ge=0)
+        forgotten_speed_mps: float = pydantic.Field(5.0, ge=0)
         occlusion_margin_m: float = pydantic.Field(10.0, ge=0)
         skip_ambiguous: bool = True
         log_rate_hz: float = pydantic.Field(2.0, gt=0)
@@ -174,6 +183,7 @@ class RelnavAid(NavigationAid):
         self.assoc = AssociationRules(self.fset.bearing_sigma_px, params.assoc_max_sigma_m, params.report_max_age_s,
                                       params.occlusion_margin_m)
         self.filters: dict[str, NeighbourFilter] = {}
+        self._forgotten: dict[str, NeighbourFilter] = {}  # the last estimate of each neighbour dropped as stale
         self.id_conf: dict[str, float] = {}
         self.last_range: dict[str, tuple[float, float]] = {}
         # Diagnostics only: did the last bearing fused for a peer come from that peer (frame truth)?
@@ -283,10 +293,15 @@ class RelnavAid(NavigationAid):
             # have disagreed for reset_bearing_after_s first. The tracker now revokes an ID its
             # last code cycle contradicts within about a second (tracking), so 1 s suffices;
             # with 3 s an estimate held on a parted neighbour's line of sight reached 7 m.
-            if f is not None and tr.id_index is not None and (
-                    (f.consecutive_bearing_rejects >= self.params.reset_after_rejects
-                     and t - f.last_bearing_t_s >= self.params.reset_bearing_after_s)
-                    or f.consecutive_rejects >= self.fset.max_consecutive_rejects):
+            lost_on_bearings = f is not None and tr.id_index is not None and (
+                f.consecutive_bearing_rejects >= self.params.reset_after_rejects
+                and t - f.last_bearing_t_s >= self.params.reset_bearing_after_s)
+            lost_on_ranges = f is not None and tr.id_index is not None and (
+                f.consecutive_rejects >= self.fset.max_consecutive_rejects)
+            # Where a (re)start must stay near: the estimate lost on bearings alone (its ranges
+            # still agree), or the one forgotten for want of bearings (_drop_stale) not long ago.
+            anchor = f if lost_on_bearings else (self._recently_forgotten(peer, t) if f is None else None)
+            if lost_on_bearings or lost_on_ranges:
                 self.counters["filter_resets"] += 1
                 f = None  # the estimate lost its neighbour: restart from an identified bearing
             if f is None:
@@ -298,6 +313,16 @@ class RelnavAid(NavigationAid):
                     continue
                 f = self._start_filter(peer, t, cam, mount, R_nb, det.centre_px, att_sigma)
                 if f is None:
+                    continue
+                if anchor is not None and not self._plausible_restart(anchor, f, t):
+                    # A move the neighbour cannot have made: a track wearing a wrong ID (uav1's
+                    # track decoded as uav6 restarted uav3's forgotten estimate of uav6 250 m
+                    # away, in front of it instead of behind).
+                    if lost_on_bearings:
+                        self.filters[peer] = anchor
+                    else:
+                        del self.filters[peer]
+                    self.counters["restarts_refused"] += 1
                     continue
             why = self.assoc.ambiguity(peer, self.filters, bearing) if self.params.skip_ambiguous else None
             if why is not None:
@@ -344,6 +369,21 @@ class RelnavAid(NavigationAid):
         log.debug("%s: relnav filter for %s started at %.2f s", self.self_id, peer, t)
         return f
 
+    def _recently_forgotten(self, peer: str, t: float) -> NeighbourFilter | None:
+        """The estimate of `peer` dropped as stale less than forgotten_max_age_s ago, if any."""
+        f = self._forgotten.get(peer)
+        return f if f is not None and t - f.t_s <= self.params.forgotten_max_age_s else None
+
+    def _plausible_restart(self, old: NeighbourFilter, new: NeighbourFilter, t: float) -> bool:
+        """Whether restarting `old` at `new`'s position is a move the neighbour can have made:
+        within restart_max_jump_m plus 3 sigma of old's position predicted to t, plus
+        forgotten_speed_mps for every second since old's last update."""
+        dt = max(t - old.t_s, 0.0)
+        x_pred = old.x[:3] + dt * old.x[3:]
+        jump = float(np.linalg.norm(new.x[:3] - x_pred))
+        sigma = math.sqrt(max(float(np.trace(old.P[:3, :3])), 0.0))
+        return jump <= self.params.restart_max_jump_m + 3.0 * sigma + self.params.forgotten_speed_mps * dt
+
     def _drop_stale(self, t: float) -> None:
         """Forget neighbours without a bearing for stale_after_s. Ranges alone keep only the
         distance: the direction drifts over the range sphere (one estimate went from behind to
@@ -351,7 +391,7 @@ class RelnavAid(NavigationAid):
         accepts the first bearing of any track claiming that ID. A forgotten neighbour is
         restarted from an identified track (with the check against the other neighbours)."""
         for peer in [p for p, f in self.filters.items() if t - f.last_bearing_t_s > self.params.stale_after_s]:
-            del self.filters[peer]
+            self._forgotten[peer] = self.filters.pop(peer)
 
     def _attitude_at(self, t: float) -> np.ndarray | None:
         """Own attitude R_nb (3, 3) at t: the latest estimate carried by its body rate."""
