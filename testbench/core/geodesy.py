@@ -194,6 +194,18 @@ def transport_rate_ned_rps(lat_rad, h_m, vel_ned_mps):
     return out
 
 
+def nav_frame_rate_ned_scalar(lat_rad: float, h_m: float, vn_mps: float, ve_mps: float) -> tuple[float, float, float]:
+    """w_in = w_ie + w_en (rad/s, NED) at one point, as Python floats: the scalar twin of
+    earth_rate_ned_rps + transport_rate_ned_rps for per-sample use (same formulas)."""
+    sl, cl = math.sin(lat_rad), math.cos(lat_rad)
+    w2 = 1.0 - E2 * sl * sl
+    r_n = A_M / math.sqrt(w2)
+    r_m = r_n * (1.0 - E2) / w2
+    return (OMEGA_IE_RPS * cl + ve_mps / (r_n + h_m),
+            -vn_mps / (r_m + h_m),
+            -OMEGA_IE_RPS * sl - ve_mps * sl / cl / (r_n + h_m))
+
+
 class LocalTangentFrame:
     """A fixed local NED frame at a geodetic origin, with scalar fast paths.
 

@@ -27,7 +27,7 @@ import math
 
 import numpy as np
 
-from testbench.core.geodesy import A_M, E2, OMEGA_IE_RPS
+from testbench.core.geodesy import nav_frame_rate_ned_scalar
 from testbench.core.interfaces import BuildContext, WorldView
 from testbench.core.messages import ImuSample, TruthState
 from testbench.core.registry import register
@@ -152,14 +152,7 @@ def mean_rate_ib_b(q0_nb, q1_nb, dt_s: float, lat_rad: float, h_m: float, vel_ne
     s = math.sqrt(x * x + y * y + z * z)
     k = 2.0 * math.atan2(s, w) / s if s > 1e-12 else 2.0
     # NED's rotation rate w_in (NED axes), then into the body with C_bn = C_nb(q1)^T.
-    sl, cl = math.sin(lat_rad), math.cos(lat_rad)
-    w2 = 1.0 - E2 * sl * sl
-    r_n = A_M / math.sqrt(w2)
-    r_m = r_n * (1.0 - E2) / w2
-    vn, ve = float(vel_ned_mps[0]), float(vel_ned_mps[1])
-    wn = OMEGA_IE_RPS * cl + ve / (r_n + h_m)
-    we = -vn / (r_m + h_m)
-    wd = -OMEGA_IE_RPS * sl - ve * sl / cl / (r_n + h_m)
+    wn, we, wd = nav_frame_rate_ned_scalar(lat_rad, h_m, float(vel_ned_mps[0]), float(vel_ned_mps[1]))
     c00, c01, c02 = 1 - 2 * (by * by + bz * bz), 2 * (bx * by - bw * bz), 2 * (bx * bz + bw * by)
     c10, c11, c12 = 2 * (bx * by + bw * bz), 1 - 2 * (bx * bx + bz * bz), 2 * (by * bz - bw * bx)
     c20, c21, c22 = 2 * (bx * bz - bw * by), 2 * (by * bz + bw * bx), 1 - 2 * (bx * bx + by * by)

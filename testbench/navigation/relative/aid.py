@@ -11,7 +11,6 @@ Nothing here reads another vehicle's state: only this vehicle's sensors and esti
 from __future__ import annotations
 
 import logging
-import math
 import zlib
 from dataclasses import replace
 from typing import Any
@@ -181,7 +180,7 @@ class RelnavAid(NavigationAid):
         self.trackers = {n: Tracker(len(self.ids), self.own_index, ts) for n in params.cameras}
         self.fset = FilterSettings(**params.filter.model_dump())
         self.assoc = AssociationRules(self.fset.bearing_sigma_px, params.assoc_max_sigma_m, params.report_max_age_s,
-                                      params.occlusion_margin_m)
+                                      params.occlusion_margin_m, params.restart_max_jump_m, params.forgotten_speed_mps)
         self.filters: dict[str, NeighbourFilter] = {}
         self._forgotten: dict[str, NeighbourFilter] = {}  # the last estimate of each neighbour dropped as stale
         self.id_conf: dict[str, float] = {}
@@ -314,7 +313,7 @@ class RelnavAid(NavigationAid):
                 f = self._start_filter(peer, t, cam, mount, R_nb, det.centre_px, att_sigma)
                 if f is None:
                     continue
-                if anchor is not None and not self._plausible_restart(anchor, f, t):
+                if anchor is not None and not self.assoc.within_reach(anchor, f, t):
                     # A move the neighbour cannot have made: a track wearing a wrong ID (uav1's
                     # track decoded as uav6 restarted uav3's forgotten estimate of uav6 250 m
                     # away, in front of it instead of behind).
@@ -373,16 +372,6 @@ class RelnavAid(NavigationAid):
         """The estimate of `peer` dropped as stale less than forgotten_max_age_s ago, if any."""
         f = self._forgotten.get(peer)
         return f if f is not None and t - f.t_s <= self.params.forgotten_max_age_s else None
-
-    def _plausible_restart(self, old: NeighbourFilter, new: NeighbourFilter, t: float) -> bool:
-        """Whether restarting `old` at `new`'s position is a move the neighbour can have made:
-        within restart_max_jump_m plus 3 sigma of old's position predicted to t, plus
-        forgotten_speed_mps for every second since old's last update."""
-        dt = max(t - old.t_s, 0.0)
-        x_pred = old.x[:3] + dt * old.x[3:]
-        jump = float(np.linalg.norm(new.x[:3] - x_pred))
-        sigma = math.sqrt(max(float(np.trace(old.P[:3, :3])), 0.0))
-        return jump <= self.params.restart_max_jump_m + 3.0 * sigma + self.params.forgotten_speed_mps * dt
 
     def _drop_stale(self, t: float) -> None:
         """Forget neighbours without a bearing for stale_after_s. Ranges alone keep only the

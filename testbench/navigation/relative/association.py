@@ -47,12 +47,24 @@ class Bearing:
 class AssociationRules:
     """bearing_sigma_px: pixel noise of a detection centre; assoc_max_sigma_m: a settled
     estimate's largest position sigma (sqrt trace); healthy_age_s: an estimate with a bearing
-    fused this recently is healthy; occlusion_margin_m: a neighbour this much nearer occludes."""
+    fused this recently is healthy; occlusion_margin_m: a neighbour this much nearer occludes;
+    restart_max_jump_m, restart_speed_mps: the reach of a restart (within_reach)."""
 
     bearing_sigma_px: float
     assoc_max_sigma_m: float
     healthy_age_s: float
     occlusion_margin_m: float
+    restart_max_jump_m: float = 30.0
+    restart_speed_mps: float = 5.0
+
+    def within_reach(self, anchor: NeighbourFilter, candidate: NeighbourFilter, t_s: float) -> bool:
+        """Whether a restart at candidate's position is a move the neighbour can have made since
+        `anchor` (its last estimate): within restart_max_jump_m plus 3 sigma of anchor's position
+        predicted to t_s, plus restart_speed_mps for every second since anchor's last update."""
+        dt = max(t_s - anchor.t_s, 0.0)
+        jump = float(np.linalg.norm(candidate.x[:3] - (anchor.x[:3] + dt * anchor.x[3:])))
+        sigma = float(np.sqrt(max(float(np.trace(anchor.P[:3, :3])), 0.0)))
+        return jump <= self.restart_max_jump_m + 3.0 * sigma + self.restart_speed_mps * dt
 
     def d2(self, f: NeighbourFilter, b: Bearing, settled_only: bool = True) -> float:
         """Normalised innovation squared of bearing b against f's prediction at b.t_s; inf when

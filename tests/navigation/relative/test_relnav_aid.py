@@ -172,14 +172,14 @@ def test_a_restart_further_than_the_neighbour_can_have_moved_is_refused():
     old = aid.filters["n"]
     near = NeighbourFilter(2.0, (100.0, 20.0, 0.0), np.eye(3))  # 20 m off: a lost estimate's restart
     far = NeighbourFilter(2.0, (-100.0, 0.0, 0.0), np.eye(3))  # 200 m off: another vehicle
-    assert aid._plausible_restart(old, near, 2.0)
-    assert not aid._plausible_restart(old, far, 2.0)
+    assert aid.assoc.within_reach(old, near, 2.0)
+    assert not aid.assoc.within_reach(old, far, 2.0)
     wide = NeighbourFilter(1.0, (100.0, 0.0, 0.0), np.eye(3) * 40.0**2)  # 40 m sigma: anything near goes
-    assert aid._plausible_restart(wide, far, 2.0)
+    assert aid.assoc.within_reach(wide, far, 2.0)
     # An estimate forgotten for want of bearings anchors its restart for forgotten_max_age_s,
     # the allowance growing by forgotten_speed_mps per second since it was last updated.
     aid._drop_stale(1.0 + aid.params.stale_after_s + 0.1)
     assert "n" not in aid.filters and aid._recently_forgotten("n", 10.0) is old
     assert aid._recently_forgotten("n", 1.0 + aid.params.forgotten_max_age_s + 0.1) is None
     moved = NeighbourFilter(13.0, (100.0, 60.0, 0.0), np.eye(3))  # 60 m in 12 s: possible
-    assert aid._plausible_restart(old, moved, 13.0) and not aid._plausible_restart(old, far, 13.0)
+    assert aid.assoc.within_reach(old, moved, 13.0) and not aid.assoc.within_reach(old, far, 13.0)
