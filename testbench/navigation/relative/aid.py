@@ -292,11 +292,10 @@ class RelnavAid(NavigationAid):
             # have disagreed for reset_bearing_after_s first. The tracker now revokes an ID its
             # last code cycle contradicts within about a second (tracking), so 1 s suffices;
             # with 3 s an estimate held on a parted neighbour's line of sight reached 7 m.
-            lost_on_bearings = f is not None and tr.id_index is not None and (
-                f.consecutive_bearing_rejects >= self.params.reset_after_rejects
-                and t - f.last_bearing_t_s >= self.params.reset_bearing_after_s)
-            lost_on_ranges = f is not None and tr.id_index is not None and (
-                f.consecutive_rejects >= self.fset.max_consecutive_rejects)
+            identified = f is not None and tr.id_index is not None
+            lost_on_bearings = identified and (f.consecutive_bearing_rejects >= self.params.reset_after_rejects
+                                               and t - f.last_bearing_t_s >= self.params.reset_bearing_after_s)
+            lost_on_ranges = identified and f.consecutive_rejects >= self.fset.max_consecutive_rejects
             # Where a (re)start must stay near: the estimate lost on bearings alone (its ranges
             # still agree), or the one forgotten for want of bearings (_drop_stale) not long ago.
             anchor = f if lost_on_bearings else (self._recently_forgotten(peer, t) if f is None else None)
@@ -310,19 +309,17 @@ class RelnavAid(NavigationAid):
                 if self.assoc.claimed_by_other(peer, self.filters, bearing):
                     self.counters["restarts_refused"] += 1
                     continue
-                f = self._start_filter(peer, t, cam, mount, R_nb, det.centre_px, att_sigma)
+                f = self._new_filter(peer, t, cam, mount, R_nb, det.centre_px, att_sigma)
                 if f is None:
                     continue
                 if anchor is not None and not self.assoc.within_reach(anchor, f, t):
                     # A move the neighbour cannot have made: a track wearing a wrong ID (uav1's
                     # track decoded as uav6 restarted uav3's forgotten estimate of uav6 250 m
-                    # away, in front of it instead of behind).
-                    if lost_on_bearings:
-                        self.filters[peer] = anchor
-                    else:
-                        del self.filters[peer]
+                    # away, in front of it instead of behind). A lost estimate stays as it was.
                     self.counters["restarts_refused"] += 1
                     continue
+                self.filters[peer] = f
+                log.debug("%s: relnav filter for %s started at %.2f s", self.self_id, peer, t)
             why = self.assoc.ambiguity(peer, self.filters, bearing) if self.params.skip_ambiguous else None
             if why is not None:
                 self.counters[f"bearings_{why}"] += 1
@@ -352,7 +349,9 @@ class RelnavAid(NavigationAid):
             return det
         return replace(det, led_level=float(sum(d.led_level for d in found)))
 
-    def _start_filter(self, peer, t, cam, mount, R_nb, centre_px, att_sigma) -> NeighbourFilter | None:
+    def _new_filter(self, peer, t, cam, mount, R_nb, centre_px, att_sigma) -> NeighbourFilter | None:
+        """A neighbour filter started from this bearing and the recent UWB ranges of `peer`
+        (None without a recent range); the caller decides whether to keep it."""
         recent = [r for (tr, r) in self.last_range.get(peer, ()) if t - tr <= self.params.range_max_age_s]
         if not recent:
             return None
@@ -363,10 +362,7 @@ class RelnavAid(NavigationAid):
         r0 = r0 - R_nb @ np.asarray(self.params.target_offset_b_m, float)
         ang = np.hypot(self.fset.bearing_sigma_px / (0.5 * (cam.fx + cam.fy)), att_sigma)
         P0 = initial_covariance(r0, self.fset.range_sigma_m, ang)
-        f = NeighbourFilter(t, r0, P0, self.fset)
-        self.filters[peer] = f
-        log.debug("%s: relnav filter for %s started at %.2f s", self.self_id, peer, t)
-        return f
+        return NeighbourFilter(t, r0, P0, self.fset)
 
     def _recently_forgotten(self, peer: str, t: float) -> NeighbourFilter | None:
         """The estimate of `peer` dropped as stale less than forgotten_max_age_s ago, if any."""
