@@ -101,6 +101,12 @@ class FormationParams(ParamsModel):
     fast feed-forward feeds our own velocity back through that lag; with 1 s the back rows of
     the arrowhead swung 20-60 m about their slots); course_rate_tau_s: that of the course rate
     omega (v_rot; 0 leaves v_rot out), clamped to max_course_rate_deg_s;
+    max_course_slew_deg_s: the course this follower holds turns at most this fast (set it a
+    little above the leader's turn-rate limit; None: no limit). Why: the layout course jumps
+    when the set of followed neighbours changes (one goes stale, or a new one turns fresh) and
+    rotates when a neighbour ahead lags its slot; with a 100 m spread and a slot 130-170 m
+    from the neighbours, every degree of that moves our target 2-3 m, so the rows of an
+    arrowhead amplify the lag of the rows ahead (the back row ran 40 m behind in the start-up);
     min_geometry_spread_m: the followed neighbours' slots must spread this far (RMS about their
     mean) for their layout to give the course (geometry_course), low-passed with
     geometry_tau_s; course_min_speed_mps: below
@@ -118,6 +124,7 @@ class FormationParams(ParamsModel):
     ff_tau_s: float = pydantic.Field(4.0, ge=0)
     course_rate_tau_s: float = pydantic.Field(4.0, ge=0)
     max_course_rate_deg_s: float = pydantic.Field(2.0, gt=0)
+    max_course_slew_deg_s: float | None = pydantic.Field(None, gt=0)
     min_geometry_spread_m: float = pydantic.Field(30.0, gt=0)
     geometry_tau_s: float = pydantic.Field(2.0, ge=0)
     course_min_speed_mps: float = pydantic.Field(1.0, ge=0)
@@ -197,6 +204,9 @@ class FormationLaw:
         elif math.hypot(self.v_ff[0], self.v_ff[1]) >= p.course_min_speed_mps:
             course = math.atan2(self.v_ff[1], self.v_ff[0])
             self._course_lag_s = p.ff_tau_s
+        if course is not None and p.max_course_slew_deg_s is not None:
+            step = math.radians(p.max_course_slew_deg_s) * dt
+            course = self.course + float(np.clip(wrap_pi(course - self.course), -step, step))
         if course is not None:
             if dt > 0 and b > 0:
                 rate = wrap_pi(course - self.course) / dt

@@ -182,3 +182,28 @@ def test_geometry_course_recovers_the_formations_orientation():
         assert abs(math.remainder(got - chi, 2 * math.pi)) < math.radians(0.5)
     assert geometry_course(nbs[:1], slots, 30.0) is None  # one neighbour: no orientation
     assert geometry_course(nbs[1:], slots, 80.0) is None  # b, c spread 50 m RMS < 80
+
+
+def test_course_slew_limit_bounds_a_jump_of_the_layout_course():
+    """The followed neighbours' layout turning 10 deg at once (a neighbour ahead lagging its
+    slot, or the followed set changing) moves the course held by at most max_course_slew_deg_s
+    per second; without the limit the course follows within a few geometry time constants."""
+    from testbench.control.formation import formation_rotation
+
+    slots = {"a": (0.0, 0.0, 0.0), "b": (0.0, 100.0, 0.0), "me": (-100.0, 50.0, 0.0)}
+
+    def table(chi, t):
+        R = formation_rotation(chi)
+        return {k: _rel(k, R @ (np.asarray(slots[k]) - slots["me"]), t=t) for k in "ab"}
+
+    courses = {}
+    for slew in (None, 0.6):
+        law = FormationLaw(FormationParams(slots=slots, leader_id="a", max_course_slew_deg_s=slew, geometry_tau_s=1.0), "me")
+        for k in range(50):  # 1 s settled on course 0
+            law.velocity_command(0.02 * k, _est((0, 0, -100.0), (1e-9, 0, 0), t=0.02 * k), table(0.0, 0.02 * k))
+        assert abs(law.course) < 1e-9
+        for k in range(50, 300):  # 5 s with the layout turned by 10 deg
+            law.velocity_command(0.02 * k, _est((0, 0, -100.0), (1e-9, 0, 0), t=0.02 * k), table(math.radians(10.0), 0.02 * k))
+        courses[slew] = math.degrees(law.course)
+    assert courses[None] == pytest.approx(10.0, abs=0.1)
+    assert courses[0.6] == pytest.approx(0.6 * 5.0, abs=0.05)  # slewing at the limit all along
