@@ -107,6 +107,11 @@ class FormationParams(ParamsModel):
     rotates when a neighbour ahead lags its slot; with a 100 m spread and a slot 130-170 m
     from the neighbours, every degree of that moves our target 2-3 m, so the rows of an
     arrowhead amplify the lag of the rows ahead (the back row ran 40 m behind in the start-up);
+    course_coast_s: for this long after the last layout course, a follower left with fewer than
+    two fresh neighbours, the leader not among them, carries its course on with its course
+    rate instead of taking the velocity course: in a turn a neighbour off the pivot flies 10 deg or more off the leader's
+    course (the back row of the arrowhead, left with one neighbour for 6 s in a turn, took
+    it, and was 29 m off its slot when the layout came back); 0 disables;
     min_geometry_spread_m: the followed neighbours' slots must spread this far (RMS about their
     mean) for their layout to give the course (geometry_course), low-passed with
     geometry_tau_s; course_min_speed_mps: below
@@ -125,6 +130,7 @@ class FormationParams(ParamsModel):
     course_rate_tau_s: float = pydantic.Field(4.0, ge=0)
     max_course_rate_deg_s: float = pydantic.Field(2.0, gt=0)
     max_course_slew_deg_s: float | None = pydantic.Field(None, gt=0)
+    course_coast_s: float = pydantic.Field(0.0, ge=0)
     min_geometry_spread_m: float = pydantic.Field(30.0, gt=0)
     geometry_tau_s: float = pydantic.Field(2.0, ge=0)
     course_min_speed_mps: float = pydantic.Field(1.0, ge=0)
@@ -151,6 +157,7 @@ class FormationLaw:
         self.course_rate_rps = 0.0
         self.course_lead: float | None = None  # course carried forward by its filter's lag
         self._course_lag_s = 0.0
+        self._geometry_t_s: float | None = None  # when the layout last gave the course
         self.accel_ff = np.zeros(3)
         self.v_ff: np.ndarray | None = None
         self.hold_alt_down_m: float | None = None
@@ -201,6 +208,13 @@ class FormationLaw:
             g = min(1.0, dt / p.geometry_tau_s) if p.geometry_tau_s > 0 else 1.0
             course = self.course + g * wrap_pi(geo - self.course)
             self._course_lag_s = p.geometry_tau_s
+            self._geometry_t_s = t_s
+        elif (self._geometry_t_s is not None and t_s - self._geometry_t_s <= p.course_coast_s
+              and all(e.peer_id != p.leader_id for e in fresh)):
+            # Coast: the layout course turned at course_rate until a moment ago (the leader's
+            # own velocity, when we see it, gives its course directly).
+            om_max = math.radians(p.max_course_rate_deg_s)
+            course = self.course + float(np.clip(self.course_rate_rps, -om_max, om_max)) * dt
         elif math.hypot(self.v_ff[0], self.v_ff[1]) >= p.course_min_speed_mps:
             course = math.atan2(self.v_ff[1], self.v_ff[0])
             self._course_lag_s = p.ff_tau_s

@@ -207,3 +207,28 @@ def test_course_slew_limit_bounds_a_jump_of_the_layout_course():
         courses[slew] = math.degrees(law.course)
     assert courses[None] == pytest.approx(10.0, abs=0.1)
     assert courses[0.6] == pytest.approx(0.6 * 5.0, abs=0.05)  # slewing at the limit all along
+
+
+def test_course_coasts_on_its_rate_when_the_layout_is_lost():
+    """Two neighbours ahead give the layout course, turning at 0.5 deg/s; then one goes stale
+    and the other flies 20 deg off the course (off the turn's pivot). With course_coast_s the
+    course carries on at its rate; without, it swings to that neighbour's velocity."""
+    from testbench.control.formation import formation_rotation
+
+    slots = {"lead": (0.0, 0.0, 0.0), "a": (0.0, -50.0, 0.0), "b": (0.0, 50.0, 0.0), "me": (-100.0, 0.0, 0.0)}
+    rate = math.radians(0.5)
+    final = {}
+    for coast in (0.0, 20.0):
+        law = FormationLaw(FormationParams(slots=slots, leader_id="lead", course_coast_s=coast, ff_tau_s=0.5), "me")
+        for k in range(1500):  # 30 s at 50 Hz; b is lost after 20 s
+            t = 0.02 * k
+            chi = rate * t
+            R = formation_rotation(chi)
+            v_a = 4.0 * np.array([math.cos(chi + math.radians(20.0)), math.sin(chi + math.radians(20.0)), 0.0])
+            table = {"a": _rel("a", R @ (np.asarray(slots["a"]) - slots["me"]), w=v_a, t=t)}
+            if t < 20.0:
+                table["b"] = _rel("b", R @ (np.asarray(slots["b"]) - slots["me"]), w=v_a, t=t)
+            law.velocity_command(t, _est((0, 0, -100.0), (1e-9, 0, 0), t=t), table)
+        final[coast] = math.degrees(law.course_lead) - math.degrees(rate * 29.98)
+    assert abs(final[20.0]) < 0.5  # coasting at the course rate
+    assert final[0.0] == pytest.approx(20.0, abs=1.0)  # the neighbour's velocity course
