@@ -109,9 +109,10 @@ class FormationParams(ParamsModel):
     arrowhead amplify the lag of the rows ahead (the back row ran 40 m behind in the start-up);
     course_coast_s: for this long after the last layout course, a follower left with fewer than
     two fresh neighbours, the leader not among them, carries its course on with its course
-    rate instead of taking the velocity course: in a turn a neighbour off the pivot flies 10 deg or more off the leader's
-    course (the back row of the arrowhead, left with one neighbour for 6 s in a turn, took
-    it, and was 29 m off its slot when the layout came back); 0 disables;
+    rate instead of taking the velocity course: in a turn a neighbour off the pivot flies
+    10 deg or more off the leader's course (the back row of the arrowhead, left with one
+    neighbour for 6 s in a turn, took it, and was 29 m off its slot when the layout came
+    back); 0 disables;
     min_geometry_spread_m: the followed neighbours' slots must spread this far (RMS about their
     mean) for their layout to give the course (geometry_course), low-passed with
     geometry_tau_s; course_min_speed_mps: below
