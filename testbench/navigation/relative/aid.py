@@ -111,9 +111,10 @@ class RelnavAid(NavigationAid):
     spacing or more; a really lost estimate is then dropped after stale_after_s and restarted
     afresh, within the same distance, plus forgotten_speed_mps per second since, of where it
     was when dropped, for forgotten_max_age_s; every start or restart also needs a track whose
-    ID posterior is at least start_min_id_confidence: the tracker keeps an assigned ID down to
-    lower posteriors, with hysteresis, and uav1's estimate of uav7 once started 90 m off from
-    a blob of the collinear uav3/uav6 still labelled uav7 at 0.86), skip_ambiguous (leave bearings that
+    ID posterior is at least the tracker's id_confidence, the posterior that assigns an ID: the
+    tracker keeps an assigned ID down to lower posteriors, with hysteresis, and uav1's estimate
+    of uav7 once started 90 m off from a blob of the collinear uav3/uav6 still labelled uav7 at
+    0.86), skip_ambiguous (leave bearings that
     another neighbour's estimate claims: association.py), occlusion_margin_m (a bearing that a
     neighbour's estimate this much nearer also predicts is left to that one),
     log_rate_hz (rows of table "relnav"), led_reader (params of the LED detector that reads
@@ -138,7 +139,6 @@ class RelnavAid(NavigationAid):
         restart_max_jump_m: float = pydantic.Field(30.0, gt=0)
         forgotten_max_age_s: float = pydantic.Field(30.0, ge=0)
         forgotten_speed_mps: float = pydantic.Field(5.0, ge=0)
-        start_min_id_confidence: float = pydantic.Field(0.99, ge=0, le=1)
         occlusion_margin_m: float = pydantic.Field(10.0, ge=0)
         skip_ambiguous: bool = True
         log_rate_hz: float = pydantic.Field(2.0, gt=0)
@@ -307,8 +307,8 @@ class RelnavAid(NavigationAid):
                 self.counters["filter_resets"] += 1
                 f = None  # the estimate lost its neighbour: restart from an identified bearing
             if f is None:
-                if tr.id_confidence < self.params.start_min_id_confidence:
-                    self.counters["restarts_refused"] += 1  # a start needs a confident ID
+                if tr.id_confidence < self.params.tracker.id_confidence:
+                    self.counters["restarts_refused"] += 1  # a start needs an ID as sure as an assignment
                     continue
                 # A track whose bearing is where another neighbour's healthy estimate (a bearing
                 # fused less than report_max_age_s ago) predicts one is most likely that
