@@ -203,6 +203,7 @@ class FormationLaw:
         if dt > 0:
             self.accel_ff = self.accel_ff + b * (dv_ff / dt - self.accel_ff)
         course = None
+        om_max = math.radians(p.max_course_rate_deg_s)
         geo = geometry_course(fresh, p.slots, p.min_geometry_spread_m)
         if geo is not None:
             # The followed neighbours' layout gives the formation's orientation directly.
@@ -214,7 +215,6 @@ class FormationLaw:
               and all(e.peer_id != p.leader_id for e in fresh)):
             # Coast: the layout course turned at course_rate until a moment ago (the leader's
             # own velocity, when we see it, gives its course directly).
-            om_max = math.radians(p.max_course_rate_deg_s)
             course = self.course + float(np.clip(self.course_rate_rps, -om_max, om_max)) * dt
         elif math.hypot(self.v_ff[0], self.v_ff[1]) >= p.course_min_speed_mps:
             course = math.atan2(self.v_ff[1], self.v_ff[0])
@@ -227,7 +227,6 @@ class FormationLaw:
                 rate = wrap_pi(course - self.course) / dt
                 self.course_rate_rps += b * (rate - self.course_rate_rps)
             self.course = course
-        om_max = math.radians(p.max_course_rate_deg_s)
         om = float(np.clip(self.course_rate_rps, -om_max, om_max)) if p.course_rate_tau_s > 0 else 0.0
         # Lead: a first-order low-pass lags a ramp by its time constant (2 deg of course at
         # 0.5 deg/s through 4 s, 3.5 m at 100 m), so the filtered course and velocity are carried
