@@ -110,21 +110,17 @@ def mag_vector(ekf, field_b_T, field_ned_T, sigma_T: float):
     return y, H, np.eye(3) * sigma_T**2
 
 
-def yaw_jacobian(C_nb: np.ndarray) -> np.ndarray:
-    """d yaw(Exp(phi) C_nb) / d phi (3,), yaw = atan2(C10, C00): with dC = [phi x] C, the first
-    column c changes by phi x c."""
-    c = C_nb[:, 0]
-    den = c[0] ** 2 + c[1] ** 2
-    # d(c1)/dphi = (e1 x ... ): (phi x c)_1 = phi_2 c_0 - phi_0 c_2; (phi x c)_0 = phi_1 c_2 - phi_2 c_1
-    d_c1 = np.array([-c[2], 0.0, c[0]])
-    d_c0 = np.array([0.0, c[2], -c[1]])
-    return (c[0] * d_c1 - c[1] * d_c0) / den
-
-
 def mag_heading(ekf, field_b_T, field_ned_T, sigma_rad: float):
     """Magnetic heading: the body field levelled with the nominal roll and pitch, plus the
-    model's declination, compared with the nominal yaw (the tilt enters only through the
-    levelling, which is the usual heading-aiding approximation)."""
+    model's declination, compared with the nominal yaw.
+
+    The levelling uses the filter's own tilt, so a tilt error enters the heading: with
+    C_true = Exp(phi) C_nb, the levelled field is Rz(yaw)^T (B_n + [B_n x] phi), and at an
+    inclination I a north tilt error moves the heading by about -tan(I) times itself (x2.7 at
+    70 deg). H therefore has tilt columns as well as the yaw one; with only the yaw column
+    (the common heading-aiding shortcut) the filter read tilt error as heading information and
+    claimed half the heading error it had (20-run batch of paper_ismn_800m: 0.9 mrad claimed,
+    1.4-2.0 mrad RMS)."""
     C = ekf.C_nb
     roll, pitch, yaw = dcm_to_euler(C)
     cr, sr, cp, sp = math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch)
@@ -132,11 +128,17 @@ def mag_heading(ekf, field_b_T, field_ned_T, sigma_rad: float):
     # Levelled field: Ry(pitch) Rx(roll) B_b (body -> heading frame).
     hx = cp * bx + sp * sr * by + sp * cr * bz
     hy = cr * by - sr * bz
-    decl = math.atan2(field_ned_T[1], field_ned_T[0])
+    B_n = np.asarray(field_ned_T, float)
+    decl = math.atan2(B_n[1], B_n[0])
     heading = decl - math.atan2(hy, hx)
     y = np.array([float(wrap_pi(heading - yaw))])
+    # Jacobian of heading = decl - atan2(h_y, h_x) with h = Rz(yaw)^T (B_n + [B_n x] phi).
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    Rz_T = np.array([[cy, sy, 0.0], [-sy, cy, 0.0], [0.0, 0.0, 1.0]])
+    h0 = Rz_T @ B_n
+    dh = Rz_T @ skew(B_n)  # d h / d phi (3, 3)
     H = np.zeros((1, N_STATES))
-    H[0, IA] = yaw_jacobian(C)
+    H[0, IA] = -(h0[0] * dh[1] - h0[1] * dh[0]) / (h0[0] ** 2 + h0[1] ** 2)
     return y, H, np.array([[sigma_rad**2]])
 
 

@@ -95,10 +95,11 @@ class MeasurementSigmas(ParamsModel):
     # Barometer: matched to the default sensor, a little wider (1 Pa RMS = 0.09 m at 1 km,
     # dp/dh ~ 11 Pa/m; a 20-run batch gives NIS 0.63).
     baro_m: float = pydantic.Field(0.12, gt=0)
-    # Magnetic heading: 3x the white part (100 nT over the ~17 uT horizontal field = 0.34 deg)
-    # on purpose. The heading is computed with the estimated tilt, and at a ~70 deg inclination
-    # a tilt error enters it x2.7: an error correlated over minutes, which 20 Hz updates must
-    # not average away. With 0.5 deg the yaw NEES of a 600 s run was 6.7 per dof, with 1 deg 2.3.
+    # Magnetic heading: 3x the white part (100 nT over the ~17 uT horizontal field = 0.34 deg).
+    # The heading is computed with the estimated tilt, and at a ~70 deg inclination a tilt error
+    # enters it x2.7: measurements.mag_heading carries that in H's tilt columns (before, only
+    # this sigma stood for it, and the filter claimed half its heading error); the margin stays
+    # for what no state carries (field model, soft iron).
     mag_heading_deg: float = pydantic.Field(1.0, gt=0)
     mag_T: float = pydantic.Field(1.0e-6, gt=0)
     gnss_pos_m: float | None = pydantic.Field(None, gt=0)
