@@ -123,7 +123,15 @@ class StateObservation:
 class PositionFix:
     """An absolute position fix (e.g. from scene matching) in local NED with its covariance.
 
-    cov_ned_m2 (3, 3); quality: matcher's own figure in [0, 1]; source names the producer.
+    cov_ned_m2 (3, 3): the fix's error covariance; quality: matcher's own figure in [0, 1];
+    source names the producer.
+
+    A producer that leaned on the navigator's own attitude (a pose solve with the INS attitude
+    as prior) says how: att_sensitivity_m_per_rad (3, 3), M, with the fix's error
+    = -M phi + n, phi the navigator's attitude error (NED small angles, truth = Exp(phi) estimate),
+    and cov_given_att_ned_m2 (3, 3), the covariance of n. A navigator that models the coupling
+    fuses the fix with H_phi = -M and noise cov(n); one that does not uses cov_ned_m2. None: the
+    fix is independent of the navigator's attitude.
     """
 
     t_s: float
@@ -131,6 +139,8 @@ class PositionFix:
     cov_ned_m2: np.ndarray
     quality: float
     source: str = "ismn"
+    att_sensitivity_m_per_rad: np.ndarray | None = None
+    cov_given_att_ned_m2: np.ndarray | None = None
 
 
 @dataclass(frozen=True, slots=True)

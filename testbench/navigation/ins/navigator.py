@@ -188,6 +188,13 @@ class InsEkfNavigator(Navigator):
         use_mag: bool = True
         mag_mode: Literal["heading", "vector"] = "heading"
         use_position_fix: bool = True
+        fix_attitude_coupling: bool = True
+        """Fuse a position fix that leaned on this filter's attitude (PositionFix.
+        att_sensitivity_m_per_rad: the scene matcher's pose solve takes the INS attitude as its
+        prior) with that coupling, H_phi = -M, and its covariance given the attitude. Off, such a
+        fix is fused as an independent measurement of position, which counts the filter's own
+        attitude information twice (paper_ismn_800m: M is 50-100 m/rad in tilt, i.e. 0.05-0.1 m
+        of fix error per mrad of the filter's tilt error)."""
         drag_aiding: DragAiding | None = None
         """Rotor-drag velocity aiding (multirotors in calm air; see DragAiding); None: off."""
 
@@ -308,14 +315,18 @@ class InsEkfNavigator(Navigator):
         if isinstance(measurement, PositionFix):
             if not p.use_position_fix:
                 return None
-            cov = np.asarray(measurement.cov_ned_m2, float) * p.meas_sigma.position_fix_scale**2
+            # A fix that declares how it leaned on our attitude is fused with that coupling
+            # (H_phi = -M) and its covariance given the attitude; otherwise as independent.
+            M = measurement.att_sensitivity_m_per_rad if p.fix_attitude_coupling else None
+            base = measurement.cov_ned_m2 if M is None else measurement.cov_given_att_ned_m2
+            cov = np.asarray(base, float) * p.meas_sigma.position_fix_scale**2
             # The shared part is in the b_fix states; what is left is white. A fix claiming
             # less than the shared error keeps 1 % of its smallest eigenvalue as white noise
             # (never an exact measurement).
             lam_min = float(np.linalg.eigvalsh(0.5 * (cov + cov.T)).min())
             # (A diagonal below 0.99 lam_min I keeps the remainder positive definite.)
             white = cov - np.diag(np.minimum(self.fix_error_sigma_ned_m**2, 0.99 * lam_min))
-            y, H, R = meas.position_ned(ekf, measurement.pos_ned_m, white, self.ctx.origin)
+            y, H, R = meas.position_ned(ekf, measurement.pos_ned_m, white, self.ctx.origin, M)
             kind = f"position_fix:{measurement.source}"
             info, self._last_fix_ok_t_s = self._update_or_reset(
                 kind, t, y, H, R, self._last_fix_ok_t_s, self._last_gnss_ok_t_s, p.fix_reset_after_s)

@@ -210,12 +210,13 @@ class IsmnPipeline:
             return fail(f"fix {jump:.0f} m from the estimate, outside the search window", **keep)
         # Errors the solve cannot average are added: sigma_floor_m (map georeference, unmodelled
         # relief, what the tiles share) and, without tiles, the one offset all points share.
-        cov = sol.cov_centre_m2.copy()
-        floor = p.sigma_floor_m**2 + (shared_px * g) ** 2
-        cov[:2, :2] += floor * np.eye(2)
-        cov[2, 2] += floor
+        floor = (p.sigma_floor_m**2 + (shared_px * g) ** 2) * np.eye(3)
+        cov = sol.cov_centre_m2 + floor
         quality = float(res.quality * sol.inliers.mean())
         lat["total"] = sum(lat.values())
         lat["ortho_to_fix"] = lat["ortho"] + lat["match"] + lat["pose"]
-        fix = PositionFix(float(t_s), pos_fix, cov, quality, "ismn")
+        coupled = att_cov is not None
+        fix = PositionFix(float(t_s), pos_fix, cov, quality, "ismn",
+                          att_sensitivity_m_per_rad=sol.att_sensitivity_m_per_rad if coupled else None,
+                          cov_given_att_ned_m2=sol.cov_centre_given_att_m2 + floor if coupled else None)
         return fix, IsmnDiagnostics(t_s, dict(lat), **{**keep, "peak_quality": quality})

@@ -10,6 +10,13 @@ camera frame, R_nc = R_nc0 Exp(delta). Solved by Gauss-Newton with
   R_nc = Exp(psi) R_nc0): with a good INS attitude the solve leans on it, with a poor one the
   image geometry frees it (MAP estimate);
 - one round of outlier rejection (Mahalanobis chi-square, 2 dof, 99.9 %).
+A solve that leans on the INS attitude is not independent of the INS: an attitude error of the
+filter moves the camera centre the solve returns. The solution says by how much (the sensitivity
+of the centre to the prior's mean, M) and what is left once the attitude is known (the
+covariance from the image alone), so that a filter can fuse the fix as
+fix = c_true - M phi + n, cov(n) = cov_centre_given_att (phi: the filter's attitude error),
+instead of as an independent measurement that it would count twice (Bar-Shalom et al. 2001,
+sec. 10.4: a measurement correlated with the state).
 method "opencv" uses cv2.solvePnP (SOLVEPNP_ITERATIVE seeded with the estimate) instead and only
 the covariance from the same Jacobian.
 """
@@ -29,7 +36,13 @@ CHI2_2DOF_999 = 13.8155
 @dataclass(frozen=True)
 class PoseSolution:
     """centre_ned_m (3,), R_nc (3, 3) camera->NED, cov_centre_m2 (3, 3), cov_att_rad2 (3, 3) (NED
-    small angles), inliers (N,) bool, rms_px: post-fit image residual RMS of the inliers."""
+    small angles), inliers (N,) bool, rms_px: post-fit image residual RMS of the inliers.
+
+    With an attitude prior: att_sensitivity_m_per_rad (3, 3), M = d centre / d (prior mean), the
+    prior's mean moved by a small NED rotation (rad); cov_centre_given_att_m2 (3, 3), the centre's
+    covariance from the image alone (what is left when the prior's error is known). Identity:
+    cov_centre_m2 = cov_centre_given_att_m2 + M prior_cov M^T. Without a prior: M = 0 and the two
+    covariances are the same."""
 
     centre_ned_m: np.ndarray
     R_nc: np.ndarray
@@ -37,6 +50,8 @@ class PoseSolution:
     cov_att_rad2: np.ndarray
     inliers: np.ndarray
     rms_px: float
+    att_sensitivity_m_per_rad: np.ndarray
+    cov_centre_given_att_m2: np.ndarray
 
 
 def _exp(rotvec):
@@ -137,13 +152,24 @@ def solve_camera_pose(
         if method == "opencv":
             iterations = 8  # refine the inlier set with Gauss-Newton
     r, J, W = _linearise(K, R, c, X[inl], uv[inl], sigma_ground_m, sigma_img_px)
-    A = np.einsum("nki,nkl,nlj->ij", J, W, J)
+    A_img = np.einsum("nki,nkl,nlj->ij", J, W, J)  # information of the image alone
+    A = A_img.copy()
+    Jpsi = np.zeros((3, 6))
+    Jpsi[:, 3:] = R  # d psi (NED) / d delta (camera frame)
     if P_prior_inv is not None:
-        A[3:, 3:] += R.T @ P_prior_inv @ R
+        A += Jpsi.T @ P_prior_inv @ Jpsi
     try:
         cov = np.linalg.inv(A + 1e-12 * np.eye(6))
     except np.linalg.LinAlgError:
         return None
     cov_att = R @ cov[3:, 3:] @ R.T
+    if P_prior_inv is not None:
+        # Moving the prior's mean by mu (NED rad) moves the solution by A^-1 Jpsi^T P^-1 mu; the
+        # image's own noise reaches the solution as A^-1 A_img A^-1.
+        M = (cov @ Jpsi.T @ P_prior_inv)[:3]
+        cov_img = (cov @ A_img @ cov)[:3, :3]
+    else:
+        M, cov_img = np.zeros((3, 3)), cov[:3, :3]
     rms = float(np.sqrt(np.mean(np.sum(r**2, axis=1)))) if len(r) else float("nan")
-    return PoseSolution(c, R, 0.5 * (cov[:3, :3] + cov[:3, :3].T), cov_att, inl, rms)
+    return PoseSolution(c, R, 0.5 * (cov[:3, :3] + cov[:3, :3].T), cov_att, inl, rms,
+                        M, 0.5 * (cov_img + cov_img.T))

@@ -144,9 +144,9 @@ def test_correlated_gnss_error_states_keep_the_filter_consistent():
     assert white > 2.0 * modelled, (white, modelled)
 
 
-def _converged_static_nav():
+def _converged_static_nav(**extra):
     q = np.array([1.0, 0, 0, 0])
-    nav = _navigator()
+    nav = _navigator(**extra)
     nav.initialize(0.0, _estimate_from(LAT0, LON0, H0, np.zeros(3), q))
     w, f = static_imu(LAT0, H0, q)
     for k in range(1, 201):
@@ -382,3 +382,30 @@ def test_gnss_rejected_past_the_timeout_resets_unless_the_fixes_agree():
         else:
             assert not any(i.accepted for i in infos) and "gnss:reset" not in kinds
             assert np.linalg.norm(nav.estimate().pos_ned_m - true_ned) < 3.0
+
+
+def test_position_fix_declaring_attitude_coupling_is_fused_with_it():
+    """A fix that leaned on the filter's attitude (PositionFix.att_sensitivity_m_per_rad M) is
+    fused with H_phi = -M and its covariance given the attitude: the innovation covariance is
+    H P H^T + R with those; with fix_attitude_coupling off it is the plain position model with
+    the fix's total covariance. Either way the shared fix error (b_fix) enters H and leaves R."""
+    from testbench.navigation.ins.error_model import IA, IFX, IP
+
+    true_ned = geodesy.geodetic_to_ned(LAT0, LON0, H0, ORIGIN.lat_rad, ORIGIN.lon_rad, ORIGIN.alt_m)
+    M = np.array([[0.0, -400.0, 5.0], [350.0, 0.0, -20.0], [3.0, 40.0, 0.0]])
+    given = np.diag([0.4, 0.5, 0.3])
+    total = given + M @ np.diag([1e-6, 1e-6, 4e-6]) @ M.T
+    fix = PositionFix(10.0, true_ned, total, 0.9, att_sensitivity_m_per_rad=M, cov_given_att_ned_m2=given)
+    for coupled in (True, False):
+        nav = _converged_static_nav(fix_attitude_coupling=coupled)
+        P = nav.covariance()
+        info = nav.correct(fix)
+        H = np.zeros((3, P.shape[0]))
+        H[:, IP] = np.eye(3)  # the vehicle sits at the origin: origin and local NED agree
+        H[:, IFX] = np.eye(3)
+        if coupled:
+            H[:, IA] = -M
+        # What the b_fix states carry is taken out of the fix's covariance; the rest is white.
+        R = (given if coupled else total) - np.diag(nav.fix_error_sigma_ned_m**2)
+        np.testing.assert_allclose(info.innovation_cov, H @ P @ H.T + R, rtol=1e-6, atol=1e-9)
+        assert info.accepted

@@ -28,6 +28,36 @@ def test_pnp_recovers_pose_from_exact_correspondences(camera, mount, method):
     assert sol.inliers.all() and np.all(np.linalg.eigvalsh(sol.cov_centre_m2) > 0)
 
 
+
+def test_pose_attitude_prior_sensitivity_matches_finite_differences(camera, mount):
+    """With the INS attitude as prior, the solve reports M = d centre / d (prior mean) and the
+    covariance from the image alone. Noisy correspondences: moving the prior's mean (the INS
+    attitude) by a small NED rotation mu moves the centre by M mu; the covariances satisfy
+    cov = cov_given_att + M P M^T; without a prior M = 0."""
+    from testbench.core.rotations import quat_to_dcm, rotvec_to_quat
+
+    rng = np.random.default_rng(5)
+    R_nb = euler_to_dcm(np.radians([2.0, -1.0, 30.0]))
+    c, R_nc = camera_pose_ned(np.array([0.0, 0.0, -800.0]), R_nb, mount)
+    X = np.c_[rng.uniform(-600, 600, (30, 2)) + c[:2], np.zeros(30)]
+    xc = (X - c) @ R_nc
+    uv = (camera.K @ xc.T)[:2].T / xc[:, 2:3] + rng.normal(0.0, 2.0, (30, 2))
+    P = np.diag(np.radians([0.05, 0.05, 0.2]) ** 2)
+    sol = solve_camera_pose(X, uv, camera.K, c, R_nc, 1.5, P)
+    M = sol.att_sensitivity_m_per_rad
+    assert np.abs(M).max() > 10.0  # the prior matters: metres per rad at 800 m
+    for axis in range(3):
+        mu = np.zeros(3)
+        mu[axis] = 2e-4  # 0.2 m at 1 km/rad: far above the solve's 0.1 mm convergence step
+        R_mu = quat_to_dcm(rotvec_to_quat(mu)) @ R_nc  # the prior's mean moved by mu (NED)
+        moved = solve_camera_pose(X, uv, camera.K, c, R_mu, 1.5, P, iterations=30)
+        fd = (moved.centre_ned_m - sol.centre_ned_m) / 2e-4
+        np.testing.assert_allclose(fd, M[:, axis], rtol=0.01, atol=0.01 * np.abs(M).max())
+    np.testing.assert_allclose(sol.cov_centre_m2, sol.cov_centre_given_att_m2 + M @ P @ M.T, rtol=1e-5, atol=1e-6)
+    free = solve_camera_pose(X, uv, camera.K, c, R_nc, 1.5, None)
+    assert np.all(free.att_sensitivity_m_per_rad == 0.0)
+    np.testing.assert_allclose(free.cov_centre_given_att_m2, free.cov_centre_m2)
+
 def _pipeline(seasons, camera, mount, **kw):
     return IsmnPipeline(camera, mount, RasterMapSource(seasons[1]), None, NccMatcher(), IsmnParams(**kw))
 
@@ -106,3 +136,4 @@ def _render_on_plane(raster, camera, mount, pos, R_nb, slope):
     M = np.array([[0.0, -g, n0 - c[0]], [g, 0.0, e0 - c[1]], [-slope * g, 0.0, -slope * e0 - c[2]]])
     H = camera.K @ R_nc.T @ M
     return cv2.warpPerspective(raster.data, H, (camera.width_px, camera.height_px), flags=cv2.INTER_LINEAR)
+
