@@ -47,7 +47,8 @@ class IsmnAttempt:
         fix = self.fix
         cov = fix.cov_ned_m2 if fix is not None else None
         row = dict(
-            t_s=self.t_s, vehicle_id=vehicle_id, attempted=True, fix=fix is not None, accepted=None,
+            t_s=self.t_s, vehicle_id=vehicle_id, attempted=bool(getattr(d, "attempted", True)),
+            fix=fix is not None, accepted=None,
             fix_north_m=float(fix.pos_ned_m[0]) if fix is not None else _NAN,
             fix_east_m=float(fix.pos_ned_m[1]) if fix is not None else _NAN,
             fix_down_m=float(fix.pos_ned_m[2]) if fix is not None else _NAN,

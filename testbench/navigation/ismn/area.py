@@ -138,11 +138,17 @@ class AreaMatcherBase(SceneMatcher):
         off_L, peak, second = g_res
         q_global = distinctiveness(peak, second)
         offset = off_L * s
+        # A heading error rotates the ortho view against the map, moving a tile r px from the
+        # frame's centre by psi r against the global placement: tiles search up to 2 sigma of
+        # that farther and may disagree by as much before the affine fit (which models the
+        # rotation) picks the inliers. Without it, a start with a 1 deg heading uncertainty
+        # gave fixes 4-8 m off at quality 0.2-0.5 from the few central tiles that agreed.
+        rot_px = 2.0 * prior.heading_sigma_rad * 0.5 * math.hypot(Ho, Wo)
         T0, cand = tile_grid(pyr_o[0][1], coarse_o[0], int(s), p.tile_px, p.tiles_x, p.tiles_y, p.max_tiles)
         fm0 = prior.map_features(p.feature) if callable(prior.map_features) else None
-        tm = refine_tiles(pyr_o, pyr_m, origin, offset, p.tile_radius_coarse * s + 1.0, cand, T0, p.feature,
-                          p.min_tile_ncc, map_feat0=fm0)
-        con = tile_consensus(tm, p.consensus_px, p.inlier_px)
+        tm = refine_tiles(pyr_o, pyr_m, origin, offset, p.tile_radius_coarse * s + 1.0 + rot_px, cand, T0,
+                          p.feature, p.min_tile_ncc, map_feat0=fm0)
+        con = tile_consensus(tm, p.consensus_px + rot_px, p.inlier_px)
         if con is None or con.inliers.sum() < p.min_inliers:
             # No agreeing tiles: the coarse placement alone, with its coarse uncertainty and a
             # quality under the usual floor (a lone global peak is not trusted by default).

@@ -71,7 +71,9 @@ class MatchPrior:
     search_radius_px: how far from it the true placement may be (3 sigma + margin);
     ortho_valid (H, W) bool and map_valid (Hm, Wm) bool masks; gsd_m: metres per pixel;
     map_features: optional callable kind -> (Hm, Wm) float32 feature image of the map window
-    (features.robust_image), precomputed by the caller (a cached map), or None.
+    (features.robust_image), precomputed by the caller (a cached map), or None;
+    heading_sigma_rad: the estimate's 1-sigma heading uncertainty, which rotates the ortho view
+    against the map (a matcher that searches translations only widens its search with it).
     """
 
     origin_px: tuple[float, float]
@@ -80,6 +82,7 @@ class MatchPrior:
     map_valid: np.ndarray | None = None
     gsd_m: float = 1.0
     map_features: object = None
+    heading_sigma_rad: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -111,7 +114,9 @@ class IsmnDiagnostics:
     ortho, ortho_valid: the orthorectified frame; map_window: the reference window (grey);
     frame_thumb: the camera frame downsampled (grey uint8); peak_quality: matcher quality;
     offset_px, offset_m (2,): matched shift (east, south) in map px / (north, east) in m;
-    window: the SearchWindow; n_correspondences, n_inliers; reason: why no fix ("" if one).
+    window: the SearchWindow; n_correspondences, n_inliers; reason: why no fix ("" if one);
+    attempted: False when the pipeline declined the frame by design (waiting for the heading),
+    which the fix rate does not count.
     """
 
     t_s: float
@@ -127,3 +132,4 @@ class IsmnDiagnostics:
     n_correspondences: int = 0
     n_inliers: int = 0
     reason: str = ""
+    attempted: bool = True

@@ -64,3 +64,26 @@ def test_feature_matchers_same_season(seasons, name):
     res = build("matcher", name, None, where="test", ctx=None).match(o, m, MatchPrior((60, 70), 20.0))
     assert res is not None and res.quality > 0.3
     np.testing.assert_allclose(res.offset_px, [5.0, -3.0], atol=0.5)
+
+
+def test_heading_uncertainty_widens_the_tile_search(seasons):
+    """The ortho frame rotated 2 deg against the map (a heading error) and shifted: with the
+    prior's heading sigma (2 deg) the tiles search far enough and the affine fit takes the
+    rotation, so the correspondences follow it to half a pixel; the matcher told the heading is
+    exact finds a handful of agreeing tiles at best."""
+    summer, winter = seasons
+    m = winter.data[:600, :700, 0]
+    x0, y0, w, h = 60, 70, 560, 440
+    ang = np.radians(2.0)
+    c, s = np.cos(ang), np.sin(ang)
+    cx, cy = w / 2.0, h / 2.0
+    # ortho px (x, y) sits at map px R (x - c) + c + (x0 + 4, y0 - 3): rotation about the centre.
+    A = np.array([[c, -s, x0 + 4.0 + cx - c * cx + s * cy], [s, c, y0 - 3.0 + cy - s * cx - c * cy]])
+    o = cv2.warpAffine(summer.data[:600, :700, 0], A, (w, h), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP)
+    told = NccMatcher().match(o, m, MatchPrior((x0, y0), 20.0, heading_sigma_rad=ang))
+    assert told is not None and told.ortho_px is not None and len(told.ortho_px) >= 20 and told.quality > 0.8
+    pred = told.ortho_px @ A[:, :2].T + A[:, 2]
+    assert np.abs(told.map_px - pred).max() < 0.5
+    blind = NccMatcher().match(o, m, MatchPrior((x0, y0), 20.0))
+    n_blind = 0 if blind is None or blind.ortho_px is None else len(blind.ortho_px)
+    assert n_blind <= 8 and (blind is None or blind.quality < 0.5)

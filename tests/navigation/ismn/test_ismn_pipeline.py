@@ -137,3 +137,14 @@ def _render_on_plane(raster, camera, mount, pos, R_nb, slope):
     H = camera.K @ R_nc.T @ M
     return cv2.warpPerspective(raster.data, H, (camera.width_px, camera.height_px), flags=cv2.INTER_LINEAR)
 
+
+def test_pipeline_waits_for_the_heading(seasons, camera, mount, make_estimate):
+    """max_heading_sigma_deg: a frame taken while the heading sigma is above it gives no fix, a
+    reason, and is not counted as an attempt; below it the same frame gives a fix."""
+    truth = np.array([0.0, 0.0, -800.0])
+    frame = render_plane_frame(seasons[0], camera, truth, np.eye(3), mount)
+    pipe = _pipeline(seasons, camera, mount, max_heading_sigma_deg=0.1)
+    fix, diag = pipe.process(frame, 0.0, make_estimate(truth, [0.0, 0.0, 0.0], sigma_att_deg=0.5))
+    assert fix is None and "heading" in diag.reason and diag.attempted is False
+    fix, diag = pipe.process(frame, 0.5, make_estimate(truth, [0.0, 0.0, 0.0], sigma_att_deg=0.05))
+    assert fix is not None and diag.attempted, diag.reason
