@@ -16,13 +16,11 @@ Known failures, kept visible (measured 2026-11-24): paper_swarm_relnav does not 
 yet (15 s: relnav.error_m.max 2.2 m against 0.4, mean 0.26 m against 0.15, IDs 0.95 against
 0.99, formation.error_m.rms 2.5 m against 2 in the leader's start-up; the arrowhead's lattice
 puts three or four vehicles on one line of sight, their LED blobs merge and part and tracks carry the wrong ID for a while;
-the mean is the vehicles' own heading error, about 1 mrad);
-lowalt_ismn_150m loses the scene match (120 s: fix rate 0.65 against 0.95, lost at 84 s; before the
-mean-rate gyro of commit 2fc93b3, 0.86, lost for tens of seconds after the corner at 90 s): a run of rejected fixes or the corner's attitude change leaves more error than the filter
-claims, the consumer IMU's accelerometer scale, misalignment and g-sensitivity being unmodelled in
-the filter (it widens its attitude by the gyro scale error per angle turned, about 1 deg a corner).
-They are strict xfails, so the day one passes the
-suite says so and its marker must go.
+the mean is the vehicles' own heading error, about 1 mrad). It is a strict xfail, so the day
+it passes the suite says so and its marker must go (lowalt_ismn_150m's went on 2026-11-24: its
+consumer-grade quad now keeps the scene match, 300 s fix rate 0.995 where it had lost the match at
+60-85 s; the magnetic heading's tilt coupling alone gave 0.81, with the fixes' attitude coupling
+0.90, with the heading-aware tile search 0.995).
 """
 
 from __future__ import annotations
@@ -50,7 +48,6 @@ GATED = {
 
 
 KNOWN_FAILING = {
-    "lowalt_ismn_150m": "fix rate 0.65 against 0.95 in 120 s: the match is lost at 60-85 s after a run of rejected fixes (consumer IMU errors the filter does not model)",
     "paper_swarm_relnav": "relative navigation and formation gates not met yet (15 s: relnav max 2.2 m, mean 0.26 m, IDs 0.95, formation rms 2.5 m)",
 }
 
