@@ -139,11 +139,15 @@ class AreaMatcherBase(SceneMatcher):
         q_global = distinctiveness(peak, second)
         offset = off_L * s
         # A heading error rotates the ortho view against the map, moving a tile r px from the
-        # frame's centre by psi r against the global placement: tiles search up to 2 sigma of
-        # that farther and may disagree by as much before the affine fit (which models the
-        # rotation) picks the inliers. Without it, a start with a 1 deg heading uncertainty
-        # gave fixes 4-8 m off at quality 0.2-0.5 from the few central tiles that agreed.
-        rot_px = 2.0 * prior.heading_sigma_rad * 0.5 * math.hypot(Ho, Wo)
+        # frame's centre by psi r against the global placement. Up to the translation vote's
+        # own tolerance (consensus_px) that needs nothing; beyond it, tiles search one sigma of
+        # that displacement (at the frame's corner) farther and may disagree by as much before
+        # the affine fit (which models the rotation) picks the inliers. Without it, a start with
+        # a 1 deg heading uncertainty gave fixes 4-8 m off at quality 0.2-0.5 from the few
+        # central tiles that agreed. (Widening in steady flight too, at a heading sigma of
+        # ~1 mrad, made every tile search two pyramid levels: latency p95 36 -> 46 ms.)
+        rot_px = prior.heading_sigma_rad * 0.5 * math.hypot(Ho, Wo)
+        rot_px = rot_px if rot_px > p.consensus_px else 0.0
         T0, cand = tile_grid(pyr_o[0][1], coarse_o[0], int(s), p.tile_px, p.tiles_x, p.tiles_y, p.max_tiles)
         fm0 = prior.map_features(p.feature) if callable(prior.map_features) else None
         tm = refine_tiles(pyr_o, pyr_m, origin, offset, p.tile_radius_coarse * s + 1.0 + rot_px, cand, T0,
