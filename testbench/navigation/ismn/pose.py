@@ -62,6 +62,14 @@ def _log(R):
     return quat_to_rotvec(dcm_to_quat(R))
 
 
+def _prior_jacobian(R_nc):
+    """d psi / d [dc_n, delta_c] (3, 6): the NED attitude deviation psi (R_nc = Exp(psi) R_nc0)
+    moves with the camera-frame increment delta as R_nc, not with the centre."""
+    Jpsi = np.zeros((3, 6))
+    Jpsi[:, 3:] = R_nc
+    return Jpsi
+
+
 def _project(K, R_nc, c, X):
     """(uv (N, 2), x_c (N, 3)) of NED points X (N, 3)."""
     xc = (X - c) @ R_nc  # rows: R_cn (X - c)
@@ -131,8 +139,7 @@ def solve_camera_pose(
             b = np.einsum("nki,nkl,nl->i", J, W, r)
             if P_prior_inv is not None:
                 psi = _log(R @ R_nc0.T)  # NED attitude deviation from the INS
-                Jpsi = np.zeros((3, 6))
-                Jpsi[:, 3:] = R  # d psi / d delta (camera-frame increment)
+                Jpsi = _prior_jacobian(R)
                 A += Jpsi.T @ P_prior_inv @ Jpsi
                 b += Jpsi.T @ P_prior_inv @ (-psi)
             try:
@@ -154,8 +161,7 @@ def solve_camera_pose(
     r, J, W = _linearise(K, R, c, X[inl], uv[inl], sigma_ground_m, sigma_img_px)
     A_img = np.einsum("nki,nkl,nlj->ij", J, W, J)  # information of the image alone
     A = A_img.copy()
-    Jpsi = np.zeros((3, 6))
-    Jpsi[:, 3:] = R  # d psi (NED) / d delta (camera frame)
+    Jpsi = _prior_jacobian(R)
     if P_prior_inv is not None:
         A += Jpsi.T @ P_prior_inv @ Jpsi
     try:
