@@ -28,7 +28,6 @@ def test_pnp_recovers_pose_from_exact_correspondences(camera, mount, method):
     assert sol.inliers.all() and np.all(np.linalg.eigvalsh(sol.cov_centre_m2) > 0)
 
 
-
 def test_pose_attitude_prior_sensitivity_matches_finite_differences(camera, mount):
     """With the INS attitude as prior, the solve reports M = d centre / d (prior mean) and the
     covariance from the image alone. Noisy correspondences: moving the prior's mean (the INS
