@@ -149,6 +149,10 @@ class InsEkfNavigator(Navigator):
         pipeline's default sigma_floor_m (0.3 m, the error its fixes cannot average) over 60 s
         (about the time to fly one 800 m-altitude footprint); a scenario that raises the
         matcher's floor (another year of real imagery) raises this with it."""
+        fix_error_turn_deg: float | None = pydantic.Field(None, gt=0.0)
+        """Heading change (deg) over which the fixes' shared error also decorrelates (None: time
+        alone): a turn rotates the camera's view over the ground, so the tiles meet other ground
+        in another geometry (ErrorStateEKF fix_error_turn_rad)."""
         fix_error_sigma_down_m: float | None = pydantic.Field(None, ge=0.0)
         """The shared error of the fixes' down axis, when it differs from the horizontal one
         (None: fix_error_sigma_m). A fix's height comes from the pose solve's scale against the
@@ -226,6 +230,7 @@ class InsEkfNavigator(Navigator):
             baro_bias_rw_m_sqrt_s=params.baro_bias_rw_m_sqrt_s,
             gnss_error_sigma_m=params.gnss_error_sigma_m, gnss_error_tau_s=params.gnss_error_tau_s,
             fix_error_sigma_m=self.fix_error_sigma_ned_m, fix_error_tau_s=params.fix_error_tau_s,
+            fix_error_turn_rad=math.radians(params.fix_error_turn_deg) if params.fix_error_turn_deg else math.inf,
             bias_model=params.imu_bias_model, vehicle_id=ctx.vehicle_id,
             gyro_scale_sigma=(preset_scale_error(params.imu_preset) if params.gyro_scale_error is None
                               else params.gyro_scale_error),

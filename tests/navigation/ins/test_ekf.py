@@ -312,6 +312,39 @@ def test_shared_fix_error_per_axis():
     assert sig[0.05][0] > 0.25, sig[0.05]  # horizontal still carries the shared 0.3 m
 
 
+def test_a_turn_decorrelates_the_shared_fix_error():
+    """fix_error_turn_deg: turning by d psi scales the shared fix error's covariance with every
+    other state by a = exp(-d psi / turn) and brings its variance back towards sigma^2 by
+    (1 - a^2) sigma^2; holding the heading leaves it to time alone."""
+    from testbench.navigation.ins.error_model import IFX, IP
+
+    q = np.array([1.0, 0, 0, 0])
+    w0, f = static_imu(LAT0, H0, q)
+    true_ned = geodesy.geodetic_to_ned(LAT0, LON0, H0, ORIGIN.lat_rad, ORIGIN.lon_rad, ORIGIN.alt_m)
+    out = {}
+    for turn_deg, yaw_rate in ((None, 0.2), (60.0, 0.2), (60.0, 0.0)):
+        nav = _navigator(fix_error_sigma_m=0.3, fix_error_tau_s=1e6, fix_error_turn_deg=turn_deg, use_gnss=False)
+        nav.initialize(0.0, _estimate_from(LAT0, LON0, H0, np.zeros(3), q))
+        for k in range(1, 201):  # fixes at 2 Hz for 10 s, holding still: P(pos, fix error) builds up
+            nav.predict(ImuSample(k * 0.05, w0, f))
+            if k % 10 == 0:
+                assert nav.correct(PositionFix(k * 0.05, true_ned, 0.25 * np.eye(3), 0.9)).accepted
+        P0 = nav.ekf.covariance()
+        w = w0 + np.array([0.0, 0.0, yaw_rate])
+        for k in range(201, 221):  # 1 s at yaw_rate, no fixes
+            nav.predict(ImuSample(k * 0.05, w, f))
+        out[(turn_deg, yaw_rate)] = (P0, nav.ekf.covariance())
+    a = math.exp(-0.2 / math.radians(60.0))
+    P0, P1 = out[(60.0, 0.2)]
+    c0, c1 = np.diag(P0[IP, IFX]), np.diag(P1[IP, IFX])
+    assert np.all(c0 < -0.01)  # position and fix error anticorrelated after fixes of their sum
+    np.testing.assert_allclose(np.diag(P1[IFX, IFX]), a * a * np.diag(P0[IFX, IFX]) + (1 - a * a) * 0.09, rtol=1e-6)
+    np.testing.assert_allclose(c1, a * c0, rtol=0.02)  # (position drifts a little in the second)
+    for key in ((None, 0.2), (60.0, 0.0)):  # no turn model, or no turn: the cross terms stay
+        P0, P1 = out[key]
+        np.testing.assert_allclose(np.diag(P1[IP, IFX]), np.diag(P0[IP, IFX]), rtol=0.02)
+
+
 def _bias_hold_errors(bias_model: str) -> tuple[float, float]:
     """(final tilt error deg, final roll/pitch gyro-bias error deg/h, the larger) of 120 s of straight
     GNSS-aided flight on a gyro with a consumer MEMS turn-on bias (0.3-0.5 deg/s, 180 times its
