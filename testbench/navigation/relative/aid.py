@@ -29,6 +29,7 @@ from testbench.navigation.relative.detectors import LedDetector
 from testbench.navigation.relative.diagnostics import RelnavDiagnostics, id_check
 from testbench.navigation.relative.frames import camera_model, frame_camera_name, frame_parts, is_camera_frame
 from testbench.navigation.relative.geometry import project_relative, relative_from_bearing_range, undistort_normalized
+from testbench.navigation.relative.layout import LayoutParams, start_fits_layout
 from testbench.navigation.relative.neighbour_filter import FilterSettings, NeighbourFilter, initial_covariance
 from testbench.navigation.relative.regions import detect_regions, merge_rois, roi_around
 from testbench.navigation.relative.tracking import Tracker, TrackerSettings
@@ -117,6 +118,9 @@ class RelnavAid(NavigationAid):
     0.86), skip_ambiguous (leave bearings that
     another neighbour's estimate claims: association.py), occlusion_margin_m (a bearing that a
     neighbour's estimate this much nearer also predicts is left to that one),
+    layout (the formation's slot table, mission data every vehicle carries: a start or restart
+    farther from the slot-predicted position than its tolerance is refused, layout.py; None:
+    no such check),
     log_rate_hz (rows of table "relnav"), led_reader (params of the LED detector that reads
     the blink level inside boxes from detectors without LED output, e.g. the CNN), seed (oracle noise when no rng is injected), roi,
     filter, tracker.
@@ -141,6 +145,7 @@ class RelnavAid(NavigationAid):
         forgotten_speed_mps: float = pydantic.Field(5.0, ge=0)
         occlusion_margin_m: float = pydantic.Field(10.0, ge=0)
         skip_ambiguous: bool = True
+        layout: LayoutParams | None = None
         log_rate_hz: float = pydantic.Field(2.0, gt=0)
         led_reader: dict = {}
         seed: int = 0
@@ -195,7 +200,7 @@ class RelnavAid(NavigationAid):
         self.t_s = 0.0
         self._next_log_t = 0.0
         self.counters = {"frames": 0, "detections": 0, "id_checks": 0, "id_wrong": 0, "bearings_used": 0, "predicted_assoc": 0, "restarts_refused": 0,
-                         "filter_resets": 0, "bearings_occluded": 0,
+                         "filter_resets": 0, "bearings_occluded": 0, "starts_off_layout": 0,
                          "bearings_closer_to_other": 0}
 
     # -- NavigationAid ---------------------------------------------------------------------
@@ -324,6 +329,13 @@ class RelnavAid(NavigationAid):
                     # track decoded as uav6 restarted uav3's forgotten estimate of uav6 250 m
                     # away, in front of it instead of behind). A lost estimate stays as it was.
                     self.counters["restarts_refused"] += 1
+                    continue
+                lay = self.params.layout
+                if lay is not None and not start_fits_layout(lay, self.self_id, peer, f.x[:3], est.vel_ned_mps,
+                                                             float(est.rpy_rad[2])):
+                    # Where the formation cannot have put that neighbour: a track wearing
+                    # another vehicle's ID (layout.py).
+                    self.counters["starts_off_layout"] += 1
                     continue
                 self.filters[peer] = f
                 log.debug("%s: relnav filter for %s started at %.2f s", self.self_id, peer, t)

@@ -1,0 +1,39 @@
+"""The formation layout's start check (navigation/relative/layout.py)."""
+
+import math
+
+import numpy as np
+
+from testbench.navigation.relative.layout import LayoutParams, expected_relative_ned_m, own_course_rad, start_fits_layout
+
+# The paper's arrowhead (forward, right, down): uav3 and uav5 stand 200 m from uav0, mirrored.
+SLOTS = {"uav0": (0.0, 0.0, 0.0), "uav3": (-173.205, -100.0, 0.0), "uav5": (-173.205, 100.0, 0.0)}
+
+
+def test_expected_relative_position_rotates_with_the_course():
+    p = LayoutParams(slots=SLOTS)
+    # Course north: forward = north, right = east.
+    assert np.allclose(expected_relative_ned_m(p, "uav0", "uav5", 0.0), [-173.205, 100.0, 0.0])
+    # Course east: forward = east, right = south.
+    assert np.allclose(expected_relative_ned_m(p, "uav0", "uav5", math.pi / 2), [-100.0, -173.205, 0.0], atol=1e-9)
+    assert expected_relative_ned_m(p, "uav0", "uav9", 0.0) is None
+
+
+def test_course_from_velocity_or_yaw_when_hovering():
+    assert math.isclose(own_course_rad([0.0, 4.0, 0.0], 0.3, 1.0), math.pi / 2)
+    assert own_course_rad([0.2, 0.1, 0.0], 0.3, 1.0) == 0.3
+
+
+def test_a_start_on_the_mirrored_vehicle_is_refused_and_near_its_slot_accepted():
+    p = LayoutParams(slots=SLOTS)
+    vel = np.array([4.0, 0.0, 0.0])  # flying north
+    uav3_where = np.array([-173.2, -100.0, 0.0])
+    # A track of uav3 decoded as uav5: the range agrees (200 m both), the side does not.
+    assert not start_fits_layout(p, "uav0", "uav5", uav3_where, vel, 0.0)
+    assert start_fits_layout(p, "uav0", "uav3", uav3_where, vel, 0.0)
+    # uav5 25 m off its slot and the layout turned by 8 deg: still a plausible start.
+    c, s = math.cos(math.radians(8)), math.sin(math.radians(8))
+    turned = np.array([c * -173.205 - s * 100.0, s * -173.205 + c * 100.0, 0.0]) + [15.0, 20.0, 0.0]
+    assert start_fits_layout(p, "uav0", "uav5", turned, vel, 0.0)
+    # A vehicle the layout does not name is never refused.
+    assert start_fits_layout(p, "uav0", "uav9", uav3_where, vel, 0.0)
