@@ -25,6 +25,7 @@ import numpy as np
 import pydantic
 
 from testbench.core.registry import ParamsModel
+from testbench.core.rotations import rot_z
 
 
 class LayoutParams(ParamsModel):
@@ -55,8 +56,7 @@ def expected_relative_ned_m(p: LayoutParams, self_id: str, peer_id: str, course_
     if self_id not in p.slots or peer_id not in p.slots:
         return None
     d = np.asarray(p.slots[peer_id], float) - np.asarray(p.slots[self_id], float)
-    c, s = math.cos(course_rad), math.sin(course_rad)
-    return np.array([c * d[0] - s * d[1], s * d[0] + c * d[1], d[2]])
+    return rot_z(course_rad) @ d
 
 
 def start_fits_layout(p: LayoutParams, self_id: str, peer_id: str, r_ned_m, vel_ned_mps, yaw_rad: float) -> bool:
