@@ -9,6 +9,7 @@ LEDs are discs at known body positions drawn bright when on and as dark lenses w
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import lru_cache
 from typing import Callable, Sequence
 
@@ -99,6 +100,81 @@ def shape_arrays(kind: str, size_m: float):
 _SILHOUETTE_PX = 6.0
 
 
+@dataclass(frozen=True)
+class _FrameProjection:
+    """Every vehicle of one frame projected once (the frame's regions of interest reuse it).
+
+    uv (N, 2) full-frame px and z (N,) camera depth m of all shape vertices, vehicle after
+    vehicle; vert_starts (n,) each vehicle's first row; centre_uv (n, 2), centre_z (n,);
+    led_uv / led_z: each vehicle's LEDs; bbox (n, 4) clipped to the frame; has_area (n,): in
+    front of the camera with a non-empty clipped box; range_m (n,); led_in: per vehicle, each
+    LED in front and inside the frame.
+    """
+
+    uv: np.ndarray
+    z: np.ndarray
+    vert_starts: np.ndarray
+    centre_uv: np.ndarray
+    centre_z: np.ndarray
+    led_uv: tuple[np.ndarray, ...]
+    led_z: tuple[np.ndarray, ...]
+    bbox: np.ndarray
+    has_area: np.ndarray
+    range_m: np.ndarray
+    led_in: tuple[tuple[bool, ...], ...]
+
+
+# The last frame's projection and what it was made from (camera, pose, vehicles object): a
+# frame rendered as several regions draws the same vehicles from the same pose each time.
+_last_projection: tuple | None = None
+
+
+def _project_frame(camera: PinholeCamera, C: np.ndarray, R_nc: np.ndarray,
+                   vehicles: Sequence[VehicleAppearance], near_m: float, far_m: float) -> _FrameProjection:
+    """One cv2.projectPoints call for every vehicle's vertices, centre and LEDs (a call per
+    vehicle cost more than the drawing in a ten-vehicle swarm), and the per-vehicle figures
+    every region needs, vectorised over the vehicles."""
+    global _last_projection
+    last = _last_projection
+    if (last is not None and last[0] is vehicles and last[1] == camera and last[2] == (near_m, far_m)
+            and np.array_equal(last[3], C) and np.array_equal(last[4], R_nc)):
+        return last[5]
+    W, H = camera.width_px, camera.height_px
+    n = len(vehicles)
+    verts, leds, counts = [], [], []
+    for veh in vehicles:
+        p = np.asarray(veh.pos_ned_m, float)
+        R_nb = np.asarray(veh.R_nb, float)
+        verts_b = shape_arrays(veh.shape, float(veh.size_m))[0]
+        leds_b = np.asarray(veh.led_positions_b_m, float).reshape(-1, 3)
+        verts.append(p + verts_b @ R_nb.T)
+        leds.append(p + leds_b @ R_nb.T)
+        counts.append(len(verts_b))
+    centres = np.array([np.asarray(v.pos_ned_m, float) for v in vehicles]).reshape(n, 3)
+    uv_all, z_all = project_points(camera, C, R_nc, np.vstack(verts + [centres] + leds))
+    n_vert = int(sum(counts))
+    uv, z = uv_all[:n_vert], z_all[:n_vert]
+    starts = np.cumsum([0] + counts[:-1]).astype(np.intp)
+    centre_uv, centre_z = uv_all[n_vert:n_vert + n], z_all[n_vert:n_vert + n]
+    lo = np.clip(np.minimum.reduceat(uv, starts, axis=0), -0.5, [W - 0.5, H - 0.5])
+    hi = np.clip(np.maximum.reduceat(uv, starts, axis=0), -0.5, [W - 0.5, H - 0.5])
+    in_front = np.logical_and.reduceat(z > near_m, starts) & (centre_z <= far_m)
+    has_area = in_front & (hi[:, 0] > lo[:, 0]) & (hi[:, 1] > lo[:, 1])
+    led_uv_all, led_z_all = uv_all[n_vert + n:], z_all[n_vert + n:]
+    led_ok = ((led_z_all > near_m) & (led_uv_all[:, 0] >= -0.5) & (led_uv_all[:, 0] < W - 0.5)
+              & (led_uv_all[:, 1] >= -0.5) & (led_uv_all[:, 1] < H - 0.5)).tolist()
+    led_uv, led_z, led_in, k = [], [], [], 0
+    for arr in leds:
+        led_uv.append(led_uv_all[k:k + len(arr)])
+        led_z.append(led_z_all[k:k + len(arr)])
+        led_in.append(tuple(led_ok[k:k + len(arr)]))
+        k += len(arr)
+    proj = _FrameProjection(uv, z, starts, centre_uv, centre_z, tuple(led_uv), tuple(led_z),
+                            np.c_[lo, hi], has_area, np.array([np.linalg.norm(c - C) for c in centres]), tuple(led_in))
+    _last_projection = (vehicles, camera, (near_m, far_m), C.copy(), R_nc.copy(), proj)
+    return proj
+
+
 def draw_vehicles(img: np.ndarray, camera: PinholeCamera, roi_origin: tuple[int, int],
                   centre_ned_m, R_nc, vehicles: Sequence[VehicleAppearance], near_m: float,
                   far_m: float, ground_depth: Callable[[float, float], float] | None) -> tuple[VehicleTruth, ...]:
@@ -111,57 +187,38 @@ def draw_vehicles(img: np.ndarray, camera: PinholeCamera, roi_origin: tuple[int,
     """
     C = np.asarray(centre_ned_m, float)
     R_nc = np.asarray(R_nc, float)
+    if not vehicles:
+        return ()
     W, H = camera.width_px, camera.height_px
     f = 0.5 * (camera.fx + camera.fy)
     ou, ov = roi_origin
     rh, rw = img.shape[:2]
+    pr = _project_frame(camera, C, R_nc, vehicles, near_m, far_m)
     items = []  # (depth, kind, payload)
     truths = []
-    # One projection for every vehicle's vertices, centre and LEDs (body -> NED with its R_nb):
-    # a projectPoints call per vehicle cost more than the drawing in a ten-vehicle swarm.
-    shapes, blocks = [], []
-    for veh in vehicles:
-        p = np.asarray(veh.pos_ned_m, float)
-        R_nb = np.asarray(veh.R_nb, float)
-        shape = shape_arrays(veh.shape, float(veh.size_m))
-        leds_b = np.asarray(veh.led_positions_b_m, float).reshape(-1, 3)
-        shapes.append((p, R_nb, shape, len(leds_b)))
-        blocks.append(p + np.vstack([shape[0], np.zeros((1, 3)), leds_b]) @ R_nb.T)
-    if blocks:
-        uv_every, z_every = project_points(camera, C, R_nc, np.vstack(blocks))
-    start = 0
-    for veh, (p, R_nb, shape, n_l), block in zip(vehicles, shapes, blocks):
-        verts_b, slices, centroids_b, normals_b, shades, one_sided = shape
-        n_v = len(verts_b)
-        uv_all, z_all = uv_every[start:start + len(block)], z_every[start:start + len(block)]
-        start += len(block)
-        uv, z = uv_all[:n_v], z_all[:n_v]
-        centre_uv, centre_z = uv_all[n_v], z_all[n_v]
-        led_uv, led_z = uv_all[n_v + 1:], z_all[n_v + 1:]
-        rng_m = float(np.linalg.norm(p - C))
-        in_front = bool((z > near_m).all()) and centre_z <= far_m
-        led_in = tuple(bool(zz > near_m and -0.5 <= uu < W - 0.5 and -0.5 <= vv < H - 0.5)
-                       for (uu, vv), zz in zip(led_uv, led_z))
-        bbox = (0.0, 0.0, 0.0, 0.0)
-        visible = False
-        if in_front:
-            u0, v0 = np.clip(uv.min(axis=0), [-0.5, -0.5], [W - 0.5, H - 0.5])
-            u1, v1 = np.clip(uv.max(axis=0), [-0.5, -0.5], [W - 0.5, H - 0.5])
-            if u1 > u0 and v1 > v0:
-                bbox = (float(u0), float(v0), float(u1), float(v1))
-                visible = True
-                if ground_depth is not None:
-                    cu = float(np.clip(centre_uv[0], 0, W - 1))
-                    cv_ = float(np.clip(centre_uv[1], 0, H - 1))
-                    visible = centre_z < ground_depth(cu, cv_)
+    bounds = np.append(pr.vert_starts, len(pr.uv))
+    for j, veh in enumerate(vehicles):
+        centre_uv, centre_z = pr.centre_uv[j], float(pr.centre_z[j])
+        led_uv, led_z = pr.led_uv[j], pr.led_z[j]
+        visible = bool(pr.has_area[j])
+        bbox = tuple(float(x) for x in pr.bbox[j]) if visible else (0.0, 0.0, 0.0, 0.0)
+        if visible and ground_depth is not None:
+            cu = float(np.clip(centre_uv[0], 0, W - 1))
+            cv_ = float(np.clip(centre_uv[1], 0, H - 1))
+            visible = centre_z < ground_depth(cu, cv_)
         truths.append(VehicleTruth(veh.id, bbox, centre_uv.copy(), led_uv.reshape(-1, 2).copy(),
-                                   tuple(bool(x) for x in veh.led_on), led_in, visible, rng_m))
+                                   tuple(bool(x) for x in veh.led_on), pr.led_in[j], bool(visible), float(pr.range_m[j])))
         if not visible:
             continue
         # Cull against the rendered region (LED glow can reach a few pixels beyond the body).
         pad = 3.0 * max(1.0, veh.led_radius_m * f / max(centre_z, near_m)) + 2.0
         if bbox[2] + pad < ou or bbox[0] - pad > ou + rw or bbox[3] + pad < ov or bbox[1] - pad > ov + rh:
             continue
+        p = np.asarray(veh.pos_ned_m, float)
+        R_nb = np.asarray(veh.R_nb, float)
+        _, slices, centroids_b, normals_b, shades, one_sided = shape_arrays(veh.shape, float(veh.size_m))
+        uv, z = pr.uv[bounds[j]:bounds[j + 1]], pr.z[bounds[j]:bounds[j + 1]]
+        n_l = len(led_z)
         # Face lighting, vectorised: normals and centroids to NED, back faces culled.
         n_n = normals_b @ R_nb.T
         c_n = p + centroids_b @ R_nb.T
@@ -173,7 +230,7 @@ def draw_vehicles(img: np.ndarray, camera: PinholeCamera, roi_origin: tuple[int,
         if max(bbox[2] - bbox[0], bbox[3] - bbox[1]) < _SILHOUETTE_PX:
             hull = cv2.convexHull(uv.astype(np.float32)).reshape(-1, 2).astype(float)
             col = tuple(float(x) for x in np.minimum(255.0, base * float(np.mean((light * shades)[show]))))
-            items.append((float(centre_z), 0, (hull, col)))
+            items.append((centre_z, 0, (hull, col)))
         else:
             for i in np.flatnonzero(show):
                 sl = slices[i]
