@@ -247,6 +247,10 @@ class InsEkfNavigator(Navigator):
         self._drag_mu_per_s = None if d is None else (d.coefficient_per_s or meas.momentum_drag_per_s(aircraft or {}))
         self._drag_acc = [0.0, 0.0, 0.0, 0.0, 0]  # sums over the interval: f_bx, f_by, v_bx, v_by; count
         self._drag_t0_s: float | None = None
+        # The last estimate() (None: the filter moved since). Aids, the controller and the
+        # recorder all ask for it at a tick; in a ten-vehicle swarm building it each time was
+        # a tenth of the run.
+        self._estimate: NavEstimate | None = None
 
     # ----------------------------------------------------------- Navigator API
     def initialize(self, t_s: float, initial: NavEstimate) -> None:
@@ -264,6 +268,7 @@ class InsEkfNavigator(Navigator):
         self.ekf.initialize(t_s, float(lat), float(lon), float(h), initial.vel_ned_mps,
                             initial.q_nb_wxyz, P0)
         self._initialized = True
+        self._estimate = None
 
     def initial_covariance(self) -> np.ndarray:
         """P0 (22, 22) from Params.initial_sigma (GNSS and fix error states: their steady state)."""
@@ -285,6 +290,7 @@ class InsEkfNavigator(Navigator):
 
     def predict(self, imu: ImuSample) -> None:
         self._require_init()
+        self._estimate = None
         self.ekf.propagate(float(imu.t_s), imu.omega_ib_b_rps, imu.f_ib_b_mps2)
         if self._drag_mu_per_s is not None:
             self._accumulate_drag(float(imu.t_s), imu.f_ib_b_mps2)
@@ -315,6 +321,7 @@ class InsEkfNavigator(Navigator):
 
     def correct(self, measurement) -> CorrectionInfo | None:
         self._require_init()
+        self._estimate = None
         p, ekf = self.params, self.ekf
         t = float(getattr(measurement, "t_s", ekf.t_s))
         if isinstance(measurement, PositionFix):
@@ -354,7 +361,12 @@ class InsEkfNavigator(Navigator):
     def estimate(self) -> NavEstimate:
         """Position in NED at the scenario origin (ctx.origin); velocity, attitude and their
         covariances in the NED frame at the vehicle (as an INS and the JSBSim truth report
-        them; the two NED frames differ by ~1.6e-4 rad per km from the origin)."""
+        them; the two NED frames differ by ~1.6e-4 rad per km from the origin).
+
+        The same object is returned until the next predict or correct; its arrays are
+        read-only, so that no consumer can change what the others see."""
+        if self._estimate is not None:
+            return self._estimate
         self._require_init()
         ekf, o = self.ekf, self.ctx.origin
         ekf.flush()
@@ -365,7 +377,7 @@ class InsEkfNavigator(Navigator):
         omega_b = np.asarray(ekf.omega_ib_b_rps, float) - C.T @ wie
         R_on = meas.origin_rotation(ins.lat_rad, ins.lon_rad, o)
         P = ekf.P
-        return NavEstimate(
+        est = NavEstimate(
             t_s=ekf.t_s,
             pos_ned_m=meas.nominal_pos_ned(ekf, o),
             vel_ned_mps=np.array(ins.vel),
@@ -377,6 +389,11 @@ class InsEkfNavigator(Navigator):
             cov_att_rad2=P[IA, IA].copy(),
             airspeed_mps=self._airspeed,
         )
+        for a in (est.pos_ned_m, est.vel_ned_mps, est.q_nb_wxyz, est.rpy_rad, est.omega_b_rps,
+                  est.cov_pos_ned_m2, est.cov_vel_ned_m2s2, est.cov_att_rad2):
+            a.flags.writeable = False
+        self._estimate = est
+        return est
 
     # ------------------------------------------------------------------ extras
     def covariance(self) -> np.ndarray:
