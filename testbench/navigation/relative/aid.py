@@ -3,14 +3,14 @@
 Per camera frame: detect (full frame, or regions around predicted tracks), track in the image,
 decode LED IDs, and fuse each identified track's line of sight (eq. 17-18, rotated with the
 vehicle's OWN ESTIMATED attitude) in that neighbour's EKF; per UWB range: fuse it in the EKF of
-the peer with that ID (NLOS-gated). No measurement goes to the INS (process returns []);
+the peer with that ID (NLOS-gated). When a neighbour's estimate starts, restarts or is forgotten
+is book.py's. No measurement goes to the INS (process returns []);
 `controller_input()` hands the NeighbourTable to the formation controller.
 Nothing here reads another vehicle's state: only this vehicle's sensors and estimate.
 """
 
 from __future__ import annotations
 
-import logging
 import zlib
 from dataclasses import replace
 from typing import Any
@@ -25,17 +25,16 @@ from testbench.core.messages import NavEstimate, UwbRange
 from testbench.core.registry import ParamsModel, build, register
 from testbench.core.rotations import quat_to_dcm, rotvec_to_quat
 from testbench.navigation.relative.association import AssociationRules, Bearing
+from testbench.navigation.relative.book import NeighbourBook, StartRules
 from testbench.navigation.relative.detectors import LedDetector
 from testbench.navigation.relative.diagnostics import RelnavDiagnostics, id_check
 from testbench.navigation.relative.frames import camera_model, frame_camera_name, frame_parts, is_camera_frame
-from testbench.navigation.relative.geometry import project_relative, relative_from_bearing_range, undistort_normalized
-from testbench.navigation.relative.layout import LayoutParams, start_fits_layout
-from testbench.navigation.relative.neighbour_filter import FilterSettings, NeighbourFilter, initial_covariance
+from testbench.navigation.relative.geometry import project_relative, undistort_normalized
+from testbench.navigation.relative.layout import LayoutParams
+from testbench.navigation.relative.neighbour_filter import FilterSettings
 from testbench.navigation.relative.regions import detect_regions, merge_rois, roi_around
 from testbench.navigation.relative.tracking import Tracker, TrackerSettings
 from testbench.navigation.relative.types import Detection, NeighbourTable, RelativeEstimate
-
-log = logging.getLogger(__name__)
 
 
 class DetectorSpec(ParamsModel):
@@ -190,10 +189,7 @@ class RelnavAid(NavigationAid):
         self.fset = FilterSettings(**params.filter.model_dump())
         self.assoc = AssociationRules(self.fset.bearing_sigma_px, params.assoc_max_sigma_m, params.report_max_age_s,
                                       params.occlusion_margin_m, params.restart_max_jump_m, params.forgotten_speed_mps)
-        self.filters: dict[str, NeighbourFilter] = {}
-        self._forgotten: dict[str, NeighbourFilter] = {}  # the last estimate of each neighbour dropped as stale
         self.id_conf: dict[str, float] = {}
-        self.last_range: dict[str, tuple[float, float]] = {}
         # Diagnostics only: did the last bearing fused for a peer come from that peer (frame truth)?
         self.bearing_id_ok: dict[str, float] = {}
         self.last_estimate: NavEstimate | None = None
@@ -202,6 +198,14 @@ class RelnavAid(NavigationAid):
         self.counters = {"frames": 0, "detections": 0, "id_checks": 0, "id_wrong": 0, "bearings_used": 0, "predicted_assoc": 0, "restarts_refused": 0,
                          "filter_resets": 0, "bearings_occluded": 0, "starts_off_layout": 0,
                          "bearings_closer_to_other": 0}
+        self.book = NeighbourBook(
+            self.self_id,
+            StartRules(params.reset_after_rejects, params.reset_bearing_after_s, params.tracker.id_confidence,
+                       params.range_max_age_s, params.stale_after_s, params.forgotten_max_age_s,
+                       np.asarray(params.target_offset_b_m, float), params.layout),
+            self.fset, self.assoc, self.counters)
+        self.filters = self.book.filters
+        """peer ID -> its NeighbourFilter (the book's, shared)."""
 
     # -- NavigationAid ---------------------------------------------------------------------
 
@@ -214,23 +218,9 @@ class RelnavAid(NavigationAid):
         self.last_estimate = estimate
         self.t_s = max(self.t_s, float(measurement.t_s))
         if isinstance(measurement, UwbRange):
-            self._range(measurement, estimate)
+            self.book.add_range(measurement, estimate)
             return [], None
         return [], self._frame(measurement, estimate)
-
-    # -- UWB -------------------------------------------------------------------------------
-
-    def _range(self, m: UwbRange, est: NavEstimate) -> None:
-        if m.peer_id == self.self_id or not np.isfinite(m.range_m):
-            return
-        hist = self.last_range.setdefault(m.peer_id, [])
-        hist.append((float(m.t_s), float(m.range_m)))
-        del hist[:-5]
-        f = self.filters.get(m.peer_id)
-        if f is not None:
-            # One installation on every vehicle, peer attitude taken equal to ours: the antenna
-            # lever arms cancel (lever_diff = R_nb (l_peer - l_self) = 0).
-            f.update_range(m.t_s, m.range_m, np.zeros(3), est.vel_ned_mps)
 
     # -- cameras ---------------------------------------------------------------------------
 
@@ -293,52 +283,9 @@ class RelnavAid(NavigationAid):
             claimed.add(peer)
             if tr.id_index is not None:
                 self.id_conf[peer] = tr.id_confidence
-            f = self.filters.get(peer)
-            # Bearings alone that disagree while the ranges still agree can be a track whose
-            # decoded ID is stale (two neighbours crossed in the image and their tracks swapped)
-            # rather than a lost filter: a restart from such a track put the neighbour on the
-            # other one's line of sight, 20-40 m off with a sigma of 0.4 m. So bearings must
-            # have disagreed for reset_bearing_after_s first. The tracker now revokes an ID its
-            # last code cycle contradicts within about a second (tracking), so 1 s suffices;
-            # with 3 s an estimate held on a parted neighbour's line of sight reached 7 m.
-            identified = f is not None and tr.id_index is not None
-            lost_on_bearings = identified and (f.consecutive_bearing_rejects >= self.params.reset_after_rejects
-                                               and t - f.last_bearing_t_s >= self.params.reset_bearing_after_s)
-            lost_on_ranges = identified and f.consecutive_rejects >= self.fset.max_consecutive_rejects
-            # Where a (re)start must stay near: the estimate lost on bearings alone (its ranges
-            # still agree), or the one forgotten for want of bearings (_drop_stale) not long ago.
-            anchor = f if lost_on_bearings else (self._recently_forgotten(peer, t) if f is None else None)
-            if lost_on_bearings or lost_on_ranges:
-                self.counters["filter_resets"] += 1
-                f = None  # the estimate lost its neighbour: restart from an identified bearing
+            f = self.book.filter_for_bearing(peer, tr, bearing, cam, mount, R_nb, est)
             if f is None:
-                if tr.id_confidence < self.params.tracker.id_confidence:
-                    self.counters["restarts_refused"] += 1  # a start needs an ID as sure as an assignment
-                    continue
-                # A track whose bearing is where another neighbour's healthy estimate (a bearing
-                # fused less than report_max_age_s ago) predicts one is most likely that
-                # neighbour under a stale ID: do not (re)start from it.
-                if self.assoc.claimed_by_other(peer, self.filters, bearing):
-                    self.counters["restarts_refused"] += 1
-                    continue
-                f = self._new_filter(peer, t, cam, mount, R_nb, det.centre_px, att_sigma)
-                if f is None:
-                    continue
-                if anchor is not None and not self.assoc.within_reach(anchor, f, t):
-                    # A move the neighbour cannot have made: a track wearing a wrong ID (uav1's
-                    # track decoded as uav6 restarted uav3's forgotten estimate of uav6 250 m
-                    # away, in front of it instead of behind). A lost estimate stays as it was.
-                    self.counters["restarts_refused"] += 1
-                    continue
-                lay = self.params.layout
-                if lay is not None and not start_fits_layout(lay, self.self_id, peer, f.x[:3], est.vel_ned_mps,
-                                                             float(est.rpy_rad[2])):
-                    # Where the formation cannot have put that neighbour: a track wearing
-                    # another vehicle's ID (layout.py).
-                    self.counters["starts_off_layout"] += 1
-                    continue
-                self.filters[peer] = f
-                log.debug("%s: relnav filter for %s started at %.2f s", self.self_id, peer, t)
+                continue
             why = self.assoc.ambiguity(peer, self.filters, bearing) if self.params.skip_ambiguous else None
             if why is not None:
                 self.counters[f"bearings_{why}"] += 1
@@ -347,7 +294,7 @@ class RelnavAid(NavigationAid):
             self.counters["bearings_used"] += int(ok)
             if ok and truth_id is not None:
                 self.bearing_id_ok[peer] = float(truth_id == peer)
-        self._drop_stale(t)
+        self.book.drop_stale(t)
         if t + 1e-9 >= self._next_log_t:
             self._next_log_t = t + 1.0 / self.params.log_rate_hz
             diag.table = self.controller_input(t)
@@ -367,35 +314,6 @@ class RelnavAid(NavigationAid):
         if not found:
             return det
         return replace(det, led_level=float(sum(d.led_level for d in found)))
-
-    def _new_filter(self, peer, t, cam, mount, R_nb, centre_px, att_sigma) -> NeighbourFilter | None:
-        """A neighbour filter started from this bearing and the recent UWB ranges of `peer`
-        (None without a recent range); the caller decides whether to keep it."""
-        recent = [r for (tr, r) in self.last_range.get(peer, ()) if t - tr <= self.params.range_max_age_s]
-        if not recent:
-            return None
-        # Median of the lower half of the last few ranges: NLOS excesses are positive, so up to
-        # half of them being NLOS cannot seed the filter with a long range.
-        low = np.sort(recent)[: (len(recent) + 1) // 2]
-        r0 = relative_from_bearing_range(cam, mount, R_nb, [centre_px], float(np.median(low)))
-        r0 = r0 - R_nb @ np.asarray(self.params.target_offset_b_m, float)
-        ang = np.hypot(self.fset.bearing_sigma_px / (0.5 * (cam.fx + cam.fy)), att_sigma)
-        P0 = initial_covariance(r0, self.fset.range_sigma_m, ang)
-        return NeighbourFilter(t, r0, P0, self.fset)
-
-    def _recently_forgotten(self, peer: str, t: float) -> NeighbourFilter | None:
-        """The estimate of `peer` dropped as stale less than forgotten_max_age_s ago, if any."""
-        f = self._forgotten.get(peer)
-        return f if f is not None and t - f.t_s <= self.params.forgotten_max_age_s else None
-
-    def _drop_stale(self, t: float) -> None:
-        """Forget neighbours without a bearing for stale_after_s. Ranges alone keep only the
-        distance: the direction drifts over the range sphere (one estimate went from behind to
-        in front of us in 47 s of ranges), and the filter's wide tangential covariance then
-        accepts the first bearing of any track claiming that ID. A forgotten neighbour is
-        restarted from an identified track (with the check against the other neighbours)."""
-        for peer in [p for p, f in self.filters.items() if t - f.last_bearing_t_s > self.params.stale_after_s]:
-            self._forgotten[peer] = self.filters.pop(peer)
 
     def _attitude_at(self, t: float) -> np.ndarray | None:
         """Own attitude R_nb (3, 3) at t: the latest estimate carried by its body rate."""

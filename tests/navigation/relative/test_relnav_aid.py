@@ -86,7 +86,7 @@ def test_a_neighbour_held_by_ranges_alone_is_forgotten():
     est = _estimate(0.0, np.zeros(3), np.random.default_rng(0), 0.0)
     for k in range(1, 61):  # 6 s of ranges, no bearing
         aid.process(UwbRange(0.1 * k, "n0", 50.0, -80.0), est)
-    aid._drop_stale(6.0)
+    aid.book.drop_stale(6.0)
     assert "n0" not in aid.filters
 
 
@@ -178,8 +178,8 @@ def test_a_restart_further_than_the_neighbour_can_have_moved_is_refused():
     assert aid.assoc.within_reach(wide, far, 2.0)
     # An estimate forgotten for want of bearings anchors its restart for forgotten_max_age_s,
     # the allowance growing by forgotten_speed_mps per second since it was last updated.
-    aid._drop_stale(1.0 + aid.params.stale_after_s + 0.1)
-    assert "n" not in aid.filters and aid._recently_forgotten("n", 10.0) is old
-    assert aid._recently_forgotten("n", 1.0 + aid.params.forgotten_max_age_s + 0.1) is None
+    aid.book.drop_stale(1.0 + aid.params.stale_after_s + 0.1)
+    assert "n" not in aid.filters and aid.book.recently_forgotten("n", 10.0) is old
+    assert aid.book.recently_forgotten("n", 1.0 + aid.params.forgotten_max_age_s + 0.1) is None
     moved = NeighbourFilter(13.0, (100.0, 60.0, 0.0), np.eye(3))  # 60 m in 12 s: possible
     assert aid.assoc.within_reach(old, moved, 13.0) and not aid.assoc.within_reach(old, far, 13.0)
