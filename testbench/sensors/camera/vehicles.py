@@ -9,7 +9,7 @@ LEDs are discs at known body positions drawn bright when on and as dark lenses w
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from typing import Callable, Sequence
 
@@ -104,24 +104,72 @@ _SILHOUETTE_PX = 6.0
 class _FrameProjection:
     """Every vehicle of one frame projected once (the frame's regions of interest reuse it).
 
-    uv (N, 2) full-frame px and z (N,) camera depth m of all shape vertices, vehicle after
-    vehicle; vert_starts (n,) each vehicle's first row; centre_uv (n, 2), centre_z (n,);
-    led_uv / led_z: each vehicle's LEDs; bbox (n, 4) clipped to the frame; has_area (n,): in
-    front of the camera with a non-empty clipped box; range_m (n,); led_in: per vehicle, each
-    LED in front and inside the frame.
+    truths: each vehicle's VehicleTruth before terrain occlusion (visible: in front of the
+    camera with a non-empty box clipped to the frame); centre_z (n,) camera depth of each
+    centre (m); centre_px_clipped (n, 2): the centre pixel clamped into the frame, where
+    terrain occlusion is looked up; uv (N, 2) full-frame px and z (N,) camera depth (m) of all
+    shape vertices, vehicle after vehicle from vert_bounds (n + 1,); led_z: each vehicle's LED
+    depths (m); C (3,) the optical centre (NED m); focal_px; near_m; items: each vehicle's
+    draw items, made the first time a region needs them (draw_items).
     """
 
+    vehicles: Sequence[VehicleAppearance]
+    truths: tuple[VehicleTruth, ...]
+    centre_z: np.ndarray
+    centre_px_clipped: np.ndarray
     uv: np.ndarray
     z: np.ndarray
-    vert_starts: np.ndarray
-    centre_uv: np.ndarray
-    centre_z: np.ndarray
-    led_uv: tuple[np.ndarray, ...]
+    vert_bounds: np.ndarray
     led_z: tuple[np.ndarray, ...]
-    bbox: np.ndarray
-    has_area: np.ndarray
-    range_m: np.ndarray
-    led_in: tuple[tuple[bool, ...], ...]
+    C: np.ndarray
+    focal_px: float
+    near_m: float
+    items: dict = field(default_factory=dict)
+
+    def draw_items(self, j: int) -> list:
+        """Vehicle j's faces (shaded, back faces culled) and LEDs as (depth m, kind, payload):
+        kind 0 a filled polygon (vertices (k, 2) full-frame px, RGB), kind 1 an LED
+        ((u, v) px, radius px, on, RGB)."""
+        if j not in self.items:
+            self.items[j] = self._make_items(j)
+        return self.items[j]
+
+    def _make_items(self, j: int) -> list:
+        veh, tr, C = self.vehicles[j], self.truths[j], self.C
+        p = np.asarray(veh.pos_ned_m, float)
+        R_nb = np.asarray(veh.R_nb, float)
+        _, slices, centroids_b, normals_b, shades, one_sided = shape_arrays(veh.shape, float(veh.size_m))
+        a, b = self.vert_bounds[j], self.vert_bounds[j + 1]
+        uv, z = self.uv[a:b], self.z[a:b]
+        bbox = tr.bbox_px
+        items = []
+        # Face lighting, vectorised: normals and centroids to NED, back faces culled.
+        n_n = normals_b @ R_nb.T
+        c_n = p + centroids_b @ R_nb.T
+        facing = np.einsum("ij,ij->i", n_n, c_n - C)
+        lit_n = np.where(one_sided[:, None], n_n, -np.sign(facing)[:, None] * n_n)
+        light = 0.45 + 0.55 * np.maximum(0.0, lit_n @ _SUN_NED)
+        show = ~(one_sided & (facing >= 0))
+        base = np.asarray(veh.colour_rgb, float)
+        if max(bbox[2] - bbox[0], bbox[3] - bbox[1]) < _SILHOUETTE_PX:
+            hull = cv2.convexHull(uv.astype(np.float32)).reshape(-1, 2).astype(float)
+            col = tuple(float(x) for x in np.minimum(255.0, base * float(np.mean((light * shades)[show]))))
+            items.append((float(self.centre_z[j]), 0, (hull, col)))
+        else:
+            for i in np.flatnonzero(show):
+                sl = slices[i]
+                col = tuple(float(x) for x in np.minimum(255.0, base * light[i] * shades[i]))
+                items.append((float(z[sl].mean()), 0, (uv[sl], col)))
+        led_z = self.led_z[j]
+        for i in range(len(led_z)):
+            lz = led_z[i]
+            if lz <= self.near_m:
+                continue
+            on = bool(veh.led_on[i]) if i < len(veh.led_on) else False
+            colour = veh.led_colours[i] if i < len(veh.led_colours) else (255, 255, 255)
+            r_px = max(0.9, veh.led_radius_m * self.focal_px / lz)
+            items.append((float(lz) - 1e-3 * veh.size_m, 1, ((tr.led_px[i, 0], tr.led_px[i, 1]), r_px, on, colour)))
+        return items
 
 
 # The last frame's projection and what it was made from (camera, pose, vehicles object): a
@@ -129,11 +177,17 @@ class _FrameProjection:
 _last_projection: tuple | None = None
 
 
+def _frozen(a: np.ndarray) -> np.ndarray:
+    """a, read-only: truths are shared by every region of a frame."""
+    a.flags.writeable = False
+    return a
+
+
 def _project_frame(camera: PinholeCamera, C: np.ndarray, R_nc: np.ndarray,
                    vehicles: Sequence[VehicleAppearance], near_m: float, far_m: float) -> _FrameProjection:
     """One cv2.projectPoints call for every vehicle's vertices, centre and LEDs (a call per
-    vehicle cost more than the drawing in a ten-vehicle swarm), and the per-vehicle figures
-    every region needs, vectorised over the vehicles."""
+    vehicle cost more than the drawing in a ten-vehicle swarm), and the per-vehicle truths,
+    vectorised over the vehicles."""
     global _last_projection
     last = _last_projection
     if (last is not None and last[0] is vehicles and last[1] == camera and last[2] == (near_m, far_m)
@@ -154,23 +208,28 @@ def _project_frame(camera: PinholeCamera, C: np.ndarray, R_nc: np.ndarray,
     uv_all, z_all = project_points(camera, C, R_nc, np.vstack(verts + [centres] + leds))
     n_vert = int(sum(counts))
     uv, z = uv_all[:n_vert], z_all[:n_vert]
-    starts = np.cumsum([0] + counts[:-1]).astype(np.intp)
+    bounds = np.cumsum([0] + counts).astype(np.intp)
+    starts = bounds[:-1]
     centre_uv, centre_z = uv_all[n_vert:n_vert + n], z_all[n_vert:n_vert + n]
     lo = np.clip(np.minimum.reduceat(uv, starts, axis=0), -0.5, [W - 0.5, H - 0.5])
     hi = np.clip(np.maximum.reduceat(uv, starts, axis=0), -0.5, [W - 0.5, H - 0.5])
     in_front = np.logical_and.reduceat(z > near_m, starts) & (centre_z <= far_m)
-    has_area = in_front & (hi[:, 0] > lo[:, 0]) & (hi[:, 1] > lo[:, 1])
+    has_area = (in_front & (hi[:, 0] > lo[:, 0]) & (hi[:, 1] > lo[:, 1])).tolist()
     led_uv_all, led_z_all = uv_all[n_vert + n:], z_all[n_vert + n:]
     led_ok = ((led_z_all > near_m) & (led_uv_all[:, 0] >= -0.5) & (led_uv_all[:, 0] < W - 0.5)
               & (led_uv_all[:, 1] >= -0.5) & (led_uv_all[:, 1] < H - 0.5)).tolist()
-    led_uv, led_z, led_in, k = [], [], [], 0
-    for arr in leds:
-        led_uv.append(led_uv_all[k:k + len(arr)])
+    truths, led_z, k = [], [], 0
+    for j, (veh, arr) in enumerate(zip(vehicles, leds)):
+        bbox = (float(lo[j, 0]), float(lo[j, 1]), float(hi[j, 0]), float(hi[j, 1])) if has_area[j] else (0.0, 0.0, 0.0, 0.0)
+        truths.append(VehicleTruth(
+            veh.id, bbox, _frozen(centre_uv[j].copy()), _frozen(led_uv_all[k:k + len(arr)].copy()),
+            tuple(bool(x) for x in veh.led_on), tuple(led_ok[k:k + len(arr)]), has_area[j],
+            float(np.linalg.norm(centres[j] - C))))
         led_z.append(led_z_all[k:k + len(arr)])
-        led_in.append(tuple(led_ok[k:k + len(arr)]))
         k += len(arr)
-    proj = _FrameProjection(uv, z, starts, centre_uv, centre_z, tuple(led_uv), tuple(led_z),
-                            np.c_[lo, hi], has_area, np.array([np.linalg.norm(c - C) for c in centres]), tuple(led_in))
+    clipped = np.c_[np.clip(centre_uv[:, 0], 0, W - 1), np.clip(centre_uv[:, 1], 0, H - 1)]
+    proj = _FrameProjection(tuple(vehicles), tuple(truths), centre_z, clipped, uv, z, bounds, tuple(led_z),
+                            C.copy(), 0.5 * (camera.fx + camera.fy), near_m)
     _last_projection = (vehicles, camera, (near_m, far_m), C.copy(), R_nc.copy(), proj)
     return proj
 
@@ -179,71 +238,34 @@ def draw_vehicles(img: np.ndarray, camera: PinholeCamera, roi_origin: tuple[int,
                   centre_ned_m, R_nc, vehicles: Sequence[VehicleAppearance], near_m: float,
                   far_m: float, ground_depth: Callable[[float, float], float] | None) -> tuple[VehicleTruth, ...]:
     """Draw `vehicles` into `img` (the rendered region, top-left at full-frame pixel
-    roi_origin) and return their truth in full-frame pixel coordinates.
+    roi_origin) and return their truth in full-frame pixel coordinates (arrays read-only).
 
     camera: the full-frame camera; ground_depth(u, v): camera depth of the terrain seen at a
     full-frame pixel (inf where sky), used to hide vehicles behind terrain. Vehicles whose
     projection misses the rendered region get their truth but are not drawn.
     """
-    C = np.asarray(centre_ned_m, float)
-    R_nc = np.asarray(R_nc, float)
     if not vehicles:
         return ()
-    W, H = camera.width_px, camera.height_px
-    f = 0.5 * (camera.fx + camera.fy)
+    pr = _project_frame(camera, np.asarray(centre_ned_m, float), np.asarray(R_nc, float), vehicles, near_m, far_m)
     ou, ov = roi_origin
     rh, rw = img.shape[:2]
-    pr = _project_frame(camera, C, R_nc, vehicles, near_m, far_m)
     items = []  # (depth, kind, payload)
     truths = []
-    bounds = np.append(pr.vert_starts, len(pr.uv))
     for j, veh in enumerate(vehicles):
-        centre_uv, centre_z = pr.centre_uv[j], float(pr.centre_z[j])
-        led_uv, led_z = pr.led_uv[j], pr.led_z[j]
-        visible = bool(pr.has_area[j])
-        bbox = tuple(float(x) for x in pr.bbox[j]) if visible else (0.0, 0.0, 0.0, 0.0)
-        if visible and ground_depth is not None:
-            cu = float(np.clip(centre_uv[0], 0, W - 1))
-            cv_ = float(np.clip(centre_uv[1], 0, H - 1))
-            visible = centre_z < ground_depth(cu, cv_)
-        truths.append(VehicleTruth(veh.id, bbox, centre_uv.copy(), led_uv.reshape(-1, 2).copy(),
-                                   tuple(bool(x) for x in veh.led_on), pr.led_in[j], bool(visible), float(pr.range_m[j])))
-        if not visible:
+        tr = pr.truths[j]
+        if tr.visible and ground_depth is not None:
+            cu, cv_ = pr.centre_px_clipped[j]
+            if not pr.centre_z[j] < ground_depth(float(cu), float(cv_)):
+                tr = replace(tr, visible=False)  # behind the terrain
+        truths.append(tr)
+        if not tr.visible:
             continue
         # Cull against the rendered region (LED glow can reach a few pixels beyond the body).
-        pad = 3.0 * max(1.0, veh.led_radius_m * f / max(centre_z, near_m)) + 2.0
+        bbox = tr.bbox_px
+        pad = 3.0 * max(1.0, veh.led_radius_m * pr.focal_px / max(float(pr.centre_z[j]), near_m)) + 2.0
         if bbox[2] + pad < ou or bbox[0] - pad > ou + rw or bbox[3] + pad < ov or bbox[1] - pad > ov + rh:
             continue
-        p = np.asarray(veh.pos_ned_m, float)
-        R_nb = np.asarray(veh.R_nb, float)
-        _, slices, centroids_b, normals_b, shades, one_sided = shape_arrays(veh.shape, float(veh.size_m))
-        uv, z = pr.uv[bounds[j]:bounds[j + 1]], pr.z[bounds[j]:bounds[j + 1]]
-        n_l = len(led_z)
-        # Face lighting, vectorised: normals and centroids to NED, back faces culled.
-        n_n = normals_b @ R_nb.T
-        c_n = p + centroids_b @ R_nb.T
-        facing = np.einsum("ij,ij->i", n_n, c_n - C)
-        lit_n = np.where(one_sided[:, None], n_n, -np.sign(facing)[:, None] * n_n)
-        light = 0.45 + 0.55 * np.maximum(0.0, lit_n @ _SUN_NED)
-        show = ~(one_sided & (facing >= 0))
-        base = np.asarray(veh.colour_rgb, float)
-        if max(bbox[2] - bbox[0], bbox[3] - bbox[1]) < _SILHOUETTE_PX:
-            hull = cv2.convexHull(uv.astype(np.float32)).reshape(-1, 2).astype(float)
-            col = tuple(float(x) for x in np.minimum(255.0, base * float(np.mean((light * shades)[show]))))
-            items.append((centre_z, 0, (hull, col)))
-        else:
-            for i in np.flatnonzero(show):
-                sl = slices[i]
-                col = tuple(float(x) for x in np.minimum(255.0, base * light[i] * shades[i]))
-                items.append((float(z[sl].mean()), 0, (uv[sl], col)))
-        for i in range(n_l):
-            lz = led_z[i]
-            if lz <= near_m:
-                continue
-            on = bool(veh.led_on[i]) if i < len(veh.led_on) else False
-            colour = veh.led_colours[i] if i < len(veh.led_colours) else (255, 255, 255)
-            r_px = max(0.9, veh.led_radius_m * f / lz)
-            items.append((float(lz) - 1e-3 * veh.size_m, 1, ((led_uv[i, 0], led_uv[i, 1]), r_px, on, colour)))
+        items.extend(pr.draw_items(j))
     items.sort(key=lambda it: -it[0])
     scale = 1 << _SHIFT
     for _, kind, payload in items:
