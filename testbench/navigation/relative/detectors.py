@@ -55,28 +55,40 @@ class LedDetector(Detector):
         self.params = params or self.Params()
 
     def _mask(self, hsv: np.ndarray) -> np.ndarray:
+        """LED pixels (H, W) uint8, 255 where lit (cv2.inRange: 2x a numpy comparison)."""
         p = self.params
-        m = (hsv[..., 2] >= p.v_min) & (hsv[..., 1] >= p.s_min)
+        m = cv2.inRange(hsv, (0, p.s_min, p.v_min), (255, 255, 255))
         if p.hue_ranges_deg:
             h = hsv[..., 0].astype(np.float32) * 2.0  # OpenCV hue is degrees / 2
-            hm = np.zeros_like(m)
+            hm = np.zeros(m.shape, bool)
             for lo, hi in p.hue_ranges_deg:
                 hm |= ((h >= lo) & (h <= hi)) if lo <= hi else ((h >= lo) | (h <= hi))
-            m &= hm
-        return m.astype(np.uint8)
+            m[~hm] = 0
+        return m
 
     def detect(self, image: np.ndarray) -> list[Detection]:
         """Detections in `image` (H, W, 3) uint8 RGB, pixel coordinates of that image."""
         p = self.params
         hsv = cv2.cvtColor(image, cv2.COLOR_RGB2HSV)
         mask = self._mask(hsv)
-        n, labels, stats, cents = cv2.connectedComponentsWithStats(mask, connectivity=8)
+        # Components of the lit pixels' bounding box only (the same components, numbered in
+        # the same raster order): a full frame's lit pixels are a few LEDs, and labelling all
+        # its 2 Mpx cost 8 ms of the detector's 18.
+        bx, by, bw, bh = cv2.boundingRect(mask)
+        if bw == 0 or bh == 0:
+            return []
+        n, labels, stats, cents = cv2.connectedComponentsWithStats(mask[by:by + bh, bx:bx + bw], connectivity=8)
+        stats[:, cv2.CC_STAT_LEFT] += bx
+        stats[:, cv2.CC_STAT_TOP] += by
+        cents += (bx, by)
         keep = [i for i in range(1, n) if stats[i, cv2.CC_STAT_AREA] <= p.max_blob_area_px
                 and self._contrast_ok(hsv[..., 2], stats[i])]
         if not keep:
             return []
+        # A canonical order (top row, then left column): OpenCV's label numbering depends on
+        # its algorithm and thread count, and the detections' order reaches the record.
+        keep.sort(key=lambda i: (stats[i, cv2.CC_STAT_TOP], stats[i, cv2.CC_STAT_LEFT]))
         groups = _group(cents[keep], p.group_px)
-        value = hsv[..., 2].astype(np.float64) / 255.0
         grey = None
         out = []
         for members in groups:
@@ -85,9 +97,9 @@ class LedDetector(Detector):
             y0 = min(stats[c, cv2.CC_STAT_TOP] for c in comp)
             x1 = max(stats[c, cv2.CC_STAT_LEFT] + stats[c, cv2.CC_STAT_WIDTH] for c in comp)
             y1 = max(stats[c, cv2.CC_STAT_TOP] + stats[c, cv2.CC_STAT_HEIGHT] for c in comp)
-            sub = labels[y0:y1, x0:x1]
+            sub = labels[y0 - by:y1 - by, x0 - bx:x1 - bx]
             gm = np.isin(sub, comp)
-            w = value[y0:y1, x0:x1] * gm
+            w = hsv[y0:y1, x0:x1, 2].astype(np.float64) / 255.0 * gm
             tot = float(w.sum())
             level = tot
             if p.data_hue_deg is not None:
