@@ -220,6 +220,7 @@ class TickWorldView:
         self.vehicles = truths
         self.obstacles = world.obstacles
         self._requests = requests
+        self._appearances: tuple[float, tuple] | None = None  # (t_s, the other vehicles' looks)
 
     def terrain_height_m(self, north_m, east_m):
         return self.world.terrain_height_m(north_m, east_m)
@@ -231,16 +232,20 @@ class TickWorldView:
         return self.world.elevation_for(bounds_ne_m)
 
     def appearances(self, t_s: float):
-        """The other vehicles as cameras see them now (true pose, LED states of the instant)."""
+        """The other vehicles as cameras see them now (true pose, LED states of the instant);
+        made once per time for all of this vehicle's cameras."""
         from testbench.core.rotations import quat_to_dcm
 
+        if self._appearances is not None and self._appearances[0] == t_s:
+            return self._appearances[1]
         out = []
         for vid, look in self.world.looks.items():
             if vid == self.self_id:
                 continue
             tr = self.vehicles[vid]
             out.append(look.appearance(vid, tr.pos_ned_m, quat_to_dcm(tr.q_nb_wxyz), t_s))
-        return out
+        self._appearances = (t_s, tuple(out))
+        return self._appearances[1]
 
     def render_requests(self, camera_name: str):
         """Regions an aid asked this camera to render (None: the whole frame)."""
