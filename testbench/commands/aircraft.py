@@ -1,4 +1,5 @@
-"""`testbench aircraft list|trim|modes`: the vehicle models, their trim and linear modes."""
+"""`testbench aircraft list|trim|modes|design`: the vehicle models, their trim, linear modes and
+the fixed-wing autopilot gains designed on them."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import os
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("aircraft", help="aircraft models: list, trim, linear modes")
+    p = subparsers.add_parser("aircraft", help="aircraft models: list, trim, linear modes, autopilot gain design")
     sub = p.add_subparsers(dest="aircraft_cmd", required=True)
 
     ls = sub.add_parser("list", help="list the project's models and those bundled with JSBSim")
@@ -25,6 +26,14 @@ def register(subparsers) -> None:
         c.add_argument("--flight-path-deg", type=float, default=0.0, help="climb angle, deg (default 0)")
         c.add_argument("--json", metavar="FILE", default=None, help="also write the result as JSON to FILE")
         c.set_defaults(handler=handler)
+
+    d = sub.add_parser("design", help="design a fixed wing's autopilot gains on its linear model (LQR/LQI, "
+                                      "control.design) and print them as a gains.py entry")
+    d.add_argument("name", help="fixed-wing aircraft name (see `testbench aircraft list`)")
+    d.add_argument("--airspeed", type=float, default=25.0, help="design airspeed, m/s (default 25)")
+    d.add_argument("--altitude", type=float, default=800.0, help="design altitude above mean sea level, m (default 800)")
+    d.add_argument("--json", metavar="FILE", default=None, help="also write the design report (closed-loop poles, bandwidths) as JSON")
+    d.set_defaults(handler=_design)
 
 
 def _list(args) -> int:
@@ -74,6 +83,15 @@ def _modes(args) -> int:
         print(f"  {m.name:13s} {m.axis:13s} {eig:>22s} {m.natural_frequency_rps:13.4f} {m.damping_ratio:7.3f} "
               f"{m.time_constant_s:8.3f} {period}  {note}")
     _write_json(args.json, lm.to_dict())
+    return 0
+
+
+def _design(args) -> int:
+    from testbench.control.design import design_fixed_wing, gains_literal
+
+    res = design_fixed_wing(args.name, args.airspeed, args.altitude)
+    print(gains_literal(res.gains, args.name), end="")
+    _write_json(args.json, res.report)
     return 0
 
 

@@ -1,4 +1,4 @@
-"""Fixed-wing gain design from the linear models (reproducible: `python -m testbench.control.design`).
+"""Fixed-wing gain design from the linear models (reproducible: `testbench aircraft design NAME`).
 
 Method
 1. Trim the aircraft in level flight at the design airspeed and altitude and linearise it
@@ -26,9 +26,7 @@ the aircraft, trim point and date.
 
 from __future__ import annotations
 
-import argparse
 import datetime
-import json
 import math
 from dataclasses import asdict, dataclass
 
@@ -202,21 +200,3 @@ def gains_literal(g: FixedWingGains, name: str) -> str:
     d.pop("design_notes")
     body = ",\n    ".join(f"{k}={v!r}" for k, v in d.items())
     return f'DEFAULT_GAINS[{name!r}] = FixedWingGains(\n    {body},\n)\n'
-
-
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--aircraft", default="tb_fixedwing")
-    ap.add_argument("--airspeed", type=float, default=25.0)
-    ap.add_argument("--altitude", type=float, default=800.0)
-    ap.add_argument("--json", action="store_true", help="print the design report as JSON")
-    a = ap.parse_args(argv)
-    res = design_fixed_wing(a.aircraft, a.airspeed, a.altitude)
-    if a.json:
-        print(json.dumps(res.report, indent=2, default=float))
-    print(gains_literal(res.gains, a.aircraft))
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -2,8 +2,8 @@
 
 The fixed-wing numbers are computed by `testbench.control.design` from the linear models of
 `testbench.dynamics.linear` (see that module's docstring for the method); the stored defaults
-record the aircraft, trim point and date so that `python -m testbench.control.design` can
-reproduce them. Multirotor gains are computed at construction from the sidecar geometry
+record the aircraft, trim point and date so that `testbench aircraft design NAME --airspeed V
+--altitude H` can reproduce them. Multirotor gains are computed at construction from the sidecar geometry
 (multirotor.py), so they need no stored table.
 """
 
@@ -45,7 +45,7 @@ class FixedWingGains:
         return np.asarray(self.k_lon, float)
 
 
-# Filled by design.py (python -m testbench.control.design --write prints this block).
+# Filled by design.py (`testbench aircraft design NAME` prints this block).
 DEFAULT_GAINS: dict[str, FixedWingGains] = {}
 
 DEFAULT_GAINS['tb_fixedwing'] = FixedWingGains(

@@ -36,3 +36,21 @@ def test_list_names_project_and_bundled_models(capsys):
     assert _main(["aircraft", "list"]) == 0
     text = capsys.readouterr().out
     assert "tb_fixedwing" in text and "tb_quad" in text and "c172x" in text
+
+
+def test_design_command_reproduces_the_stored_gains(tmp_path, capsys):
+    """`testbench aircraft design` prints a gains.py entry whose numbers are the stored set's."""
+    import re
+
+    from testbench.control.gains import DEFAULT_GAINS
+
+    out = tmp_path / "design.json"
+    assert _main(["aircraft", "design", "tb_fixedwing", "--airspeed", "25", "--altitude", "800", "--json", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert text.startswith("DEFAULT_GAINS['tb_fixedwing'] = FixedWingGains(")
+    stored = DEFAULT_GAINS["tb_fixedwing"]
+    for name in ("k_phi", "k_p", "k_r"):
+        printed = float(re.search(rf"\b{name}=([-+0-9.e]+)", text).group(1))
+        assert abs(printed - getattr(stored, name)) <= 1e-3 * max(1e-3, abs(getattr(stored, name)))  # as test_design
+    d = json.loads(out.read_text())
+    assert d["lat_min_damping"] > 0 and d["lon_min_damping"] > 0 and d["trim"]
