@@ -7,7 +7,7 @@ hands the pipeline the recorded estimate, and compares each fix with the truth. 
 fixes do not feed back into the estimate, so pipeline changes can be compared frame by frame in
 seconds instead of re-running the scenario.
 
-    python -m testbench.navigation.ismn.harness scenarios/paper_ismn_800m.yaml RUN_DIR \
+    testbench ismn replay scenarios/paper_ismn_800m.yaml RUN_DIR \
         [--t0 60 --t1 600 --step 0.5] [--pipeline '{"n_sigma": 3}'] [--matcher '{"tiles_x": 9}']
         [--frames-dir /tmp/ismn_frames] [--save-bad 5.0 --save-dir /tmp/bad]
 
@@ -16,7 +16,6 @@ Frames are cached as grey PNG in --frames-dir (rendering costs more than matchin
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import os
@@ -155,35 +154,3 @@ def summarise(rows: list[dict]) -> dict:
                 turn_mean=float(err[turn].mean()) if turn.any() else np.nan, n_turn=int(turn.sum()),
                 nees_mean=float(nees.mean()), nees_gt_9_21=float((nees > 9.21).mean()),
                 ms_p95=float(np.nanpercentile([r["ms"] for r in rows], 95)))
-
-
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("scenario")
-    ap.add_argument("run_dir", help="a run's output folder (telemetry.parquet)")
-    ap.add_argument("--set", action="append")
-    ap.add_argument("--t0", type=float, default=0.0)
-    ap.add_argument("--t1", type=float, default=1e9)
-    ap.add_argument("--step", type=float, default=0.5)
-    ap.add_argument("--pipeline")
-    ap.add_argument("--matcher")
-    ap.add_argument("--matcher-type")
-    ap.add_argument("--frames-dir")
-    ap.add_argument("--save-bad", type=float, default=5.0)
-    ap.add_argument("--save-dir")
-    ap.add_argument("--est-truth", action="store_true", help="estimate = truth pose (+ --est-offset N,E,D)")
-    ap.add_argument("--est-offset")
-    ap.add_argument("--turn-bank-deg", type=float, default=10.0)
-    ap.add_argument("--turn-rate-deg-s", type=float, default=3.0)
-    ap.add_argument("--rows", action="store_true", help="print every frame")
-    args = ap.parse_args(argv)
-    rows = run(args)
-    if args.rows:
-        for r in rows:
-            print(" ".join(f"{k}={v:.3f}" if isinstance(v, float) else f"{k}={v}" for k, v in r.items()))
-    print(json.dumps(summarise(rows), indent=1))
-    return 0
-
-
-if __name__ == "__main__":  # pragma: no cover
-    raise SystemExit(main())
