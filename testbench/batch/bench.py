@@ -4,8 +4,8 @@ local workers (same batch, same process, one after the other)."""
 
 from __future__ import annotations
 
+import logging
 import os
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -13,6 +13,8 @@ from pathlib import Path
 from testbench.batch.batch import run_batch
 from testbench.batch.plan import BatchPlan
 from testbench.sim.bench import SCENARIOS_DIR, scenario_rtf, sensor_suite_share
+
+log = logging.getLogger(__name__)
 
 # Shipped scenario -> simulated seconds used for its real-time factor. Scenarios that need the
 # real geodata are measured only where it is available.
@@ -83,7 +85,7 @@ def run_benchmarks() -> dict[str, float]:
         if not path.is_file():
             continue
         if "${TESTBENCH_DATA}" in path.read_text() and not os.environ.get("TESTBENCH_DATA"):
-            print(f"  (skipping {name}: set TESTBENCH_DATA to the shared data folder)", file=sys.stderr)
+            log.warning("bench: skipping %s: set TESTBENCH_DATA to the shared data folder", name)
             continue
         figures[f"scenarios.{name}.real_time_factor"] = scenario_rtf(name, duration)
     figures.update(swarm_figures())

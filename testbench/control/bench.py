@@ -74,9 +74,3 @@ def run_benchmarks() -> dict[str, float]:
         "control.fixed_wing_update_us": time_replay_us(*fixed_wing_sequence(rate_hz=50.0), status_every=5),
         "control.multirotor_update_us": time_replay_us(*multirotor_sequence(rate_hz=100.0), status_every=10),
     }
-
-
-if __name__ == "__main__":
-    import json
-
-    print(json.dumps(run_benchmarks(), indent=2))

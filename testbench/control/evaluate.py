@@ -1,4 +1,4 @@
-"""Closed-loop evaluation of the autopilots on JSBSim (`python -m testbench.control.evaluate`).
+"""Closed-loop evaluation of the autopilots on JSBSim, without the engine (the control tests use it).
 
 Flies the issue's two reference missions with the JSBSim adapter and an ideal navigation
 estimate built from truth (this module is an evaluation harness, like a test: the controllers
@@ -7,13 +7,12 @@ themselves only ever see the NavEstimate), and measures the control targets:
   cross-track rms on the straight legs, airspeed error on legs, peak bank;
 - multirotor through waypoints at 100 m: closest approach to each waypoint before it is
   switched, overshoot past each waypoint (along the incoming leg) and off the leg lines.
-The lead's engine reproduces these through the full pipeline; this script needs no engine.
+The engine reproduces these through the full pipeline (scenarios/fixedwing_racetrack.yaml,
+multirotor_waypoints.yaml); this harness needs no engine.
 """
 
 from __future__ import annotations
 
-import argparse
-import json
 import math
 from dataclasses import dataclass, field
 
@@ -138,23 +137,3 @@ def evaluate_fixed_wing(duration_s: float = 600.0, aircraft: str = "tb_fixedwing
     out["turn_bank_deg"], out["max_bank_limit_deg"] = turn_bank_deg, max_bank_deg
     out["turn_radius_m"] = mission.turn_radius_m(25.0)
     return out
-
-
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description="closed-loop autopilot evaluation on JSBSim")
-    ap.add_argument("which", choices=["fixed_wing", "multirotor", "all"], nargs="?", default="all")
-    ap.add_argument("--duration", type=float, default=None)
-    a = ap.parse_args(argv)
-    out = {}
-    if a.which in ("fixed_wing", "all"):
-        out["fixed_wing_racetrack"] = evaluate_fixed_wing(a.duration or 600.0)
-    if a.which in ("multirotor", "all"):
-        from testbench.control.evaluate_multirotor import evaluate_multirotor
-
-        out["multirotor_waypoints"] = evaluate_multirotor(a.duration or 300.0)
-    print(json.dumps(out, indent=2))
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

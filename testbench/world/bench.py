@@ -47,30 +47,35 @@ def _write_10km_map(path: str) -> None:
 
 
 _CHILD = """
-import math, os, resource, sys, time
+import json, math, os, resource, sys, time
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 import cv2
 cv2.setNumThreads(1)
 from testbench.core.interfaces import GeodeticOrigin
 from testbench.world.procedural.writer import write_world_streamed
-size, out = float(sys.argv[1]), sys.argv[2]
+size, out, result = float(sys.argv[1]), sys.argv[2], sys.argv[3]
 t0, c0 = time.perf_counter(), time.process_time()
 write_world_streamed(out, "farmland", size, 1.0, 7, "summer",
                      GeodeticOrigin(math.radians(47.0), math.radians(-99.0), 500.0))
-print(time.perf_counter() - t0, time.process_time() - c0,
-      resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0)
+with open(result, "w") as fh:
+    json.dump([time.perf_counter() - t0, time.process_time() - c0,
+               resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0], fh)
 """
 
 
 def _make_map(size_km: float, out_dir: str) -> tuple[float, float, float]:
-    """(wall s, CPU s, peak RSS MB) of generating and writing a farmland world, in a child."""
+    """(wall s, CPU s, peak RSS MB) of generating and writing a farmland world, in a child
+    (its own peak memory), which writes them as JSON next to the world."""
+    import json
     import subprocess
     import sys
 
     env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
-    r = subprocess.run([sys.executable, "-c", _CHILD, str(size_km), out_dir], env=env,
-                       capture_output=True, text=True, check=True)
-    wall, cpu, rss = (float(x) for x in r.stdout.split()[-3:])
+    result = os.path.join(out_dir, "make_map_figures.json")
+    subprocess.run([sys.executable, "-c", _CHILD, str(size_km), out_dir, result], env=env,
+                   capture_output=True, text=True, check=True)
+    with open(result, encoding="utf-8") as fh:
+        wall, cpu, rss = (float(x) for x in json.load(fh))
     return wall, cpu, rss
 
 
