@@ -172,7 +172,7 @@ class _FrameProjection:
         return items
 
 
-# The last frame's projection and what it was made from (camera, pose, vehicles object): a
+# The last frame's projection and what it was made from (camera, pose, vehicles tuple): a
 # frame rendered as several regions draws the same vehicles from the same pose each time.
 _last_projection: tuple | None = None
 
@@ -189,8 +189,10 @@ def _project_frame(camera: PinholeCamera, C: np.ndarray, R_nc: np.ndarray,
     vehicle cost more than the drawing in a ten-vehicle swarm), and the per-vehicle truths,
     vectorised over the vehicles."""
     global _last_projection
+    # Only an immutable container is recognised again (a list could have changed since).
+    cacheable = isinstance(vehicles, tuple)
     last = _last_projection
-    if (last is not None and last[0] is vehicles and last[1] == camera and last[2] == (near_m, far_m)
+    if (cacheable and last is not None and last[0] is vehicles and last[1] == camera and last[2] == (near_m, far_m)
             and np.array_equal(last[3], C) and np.array_equal(last[4], R_nc)):
         return last[5]
     W, H = camera.width_px, camera.height_px
@@ -230,7 +232,8 @@ def _project_frame(camera: PinholeCamera, C: np.ndarray, R_nc: np.ndarray,
     clipped = np.c_[np.clip(centre_uv[:, 0], 0, W - 1), np.clip(centre_uv[:, 1], 0, H - 1)]
     proj = _FrameProjection(tuple(vehicles), tuple(truths), centre_z, clipped, uv, z, bounds, tuple(led_z),
                             C.copy(), 0.5 * (camera.fx + camera.fy), near_m)
-    _last_projection = (vehicles, camera, (near_m, far_m), C.copy(), R_nc.copy(), proj)
+    if cacheable:
+        _last_projection = (vehicles, camera, (near_m, far_m), C.copy(), R_nc.copy(), proj)
     return proj
 
 

@@ -165,6 +165,17 @@ def test_vehicle_truth_leds_and_regions(nadir):
     assert d.max() <= 2 and d.mean() < 0.02
     assert np.array_equal(part.valid, on.valid[roi[1]:roi[3], roi[0]:roi[2]])
     assert np.allclose(part.vehicles[0].bbox_px, t.bbox_px)
+    # The same with the vehicles as one tuple, as a camera passes a frame's regions (the
+    # projection is made once for the frame and reused): the same pixels and truths, and a
+    # vehicle moved in a new tuple is drawn where it now is.
+    frame_vehicles = (_quad([True] * 4),)
+    whole = render(cam, nadir, pos, R, img, vehicles=frame_vehicles, options=NO_HAZE)
+    part2 = render(cam, nadir, pos, R, img, vehicles=frame_vehicles, roi=roi, options=NO_HAZE)
+    assert np.array_equal(whole.image, on.image) and np.array_equal(part2.image, part.image)
+    a, b = part2.vehicles[0], whole.vehicles[0]
+    assert a.bbox_px == b.bbox_px and np.array_equal(a.centre_px, b.centre_px) and np.array_equal(a.led_px, b.led_px)
+    moved = render(cam, nadir, pos, R, img, vehicles=(_quad([True] * 4, pos=(16.0, 4.0, -60.0)),), options=NO_HAZE)
+    assert np.hypot(*(moved.vehicles[0].centre_px - t.centre_px)) > 20  # 10 m north at 40 m: ~57 px
 
 
 def test_vehicle_behind_the_camera_or_hill_is_not_drawn(hill):
