@@ -270,6 +270,25 @@ def test_dispatch_and_estimate():
     assert info.kind == "mag_heading" and info.accepted and abs(info.innovation[0]) < 1e-6
 
 
+def test_estimate_is_shared_until_the_filter_moves():
+    """estimate() hands every asker the same read-only object until the next predict or
+    correct, and a fresh one after it."""
+    nav = _converged_static_nav()
+    est = nav.estimate()
+    assert nav.estimate() is est
+    for a in (est.pos_ned_m, est.vel_ned_mps, est.q_nb_wxyz, est.cov_pos_ned_m2, est.cov_att_rad2):
+        with pytest.raises(ValueError):
+            a[0] = 0.0  # read-only: no consumer can change what the others see
+    q = np.array([1.0, 0.0, 0.0, 0.0])
+    w, f = static_imu(LAT0, H0, q)
+    nav.predict(ImuSample(est.t_s + 0.01, w, f))
+    after_predict = nav.estimate()
+    assert after_predict is not est and after_predict.t_s == pytest.approx(est.t_s + 0.01)
+    assert after_predict.cov_pos_ned_m2[0, 0] > est.cov_pos_ned_m2[0, 0]  # propagated, not the stale one
+    nav.correct(AirspeedSample(after_predict.t_s, 24.0))
+    assert nav.estimate() is not after_predict and nav.estimate().airspeed_mps == 24.0
+
+
 def test_divergence_guard_raises_simulation_aborted():
     nav = _converged_static_nav()
     nav.ekf.P[0, 0] = np.nan
