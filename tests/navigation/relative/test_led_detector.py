@@ -1,0 +1,67 @@
+"""The LED blob detector on synthetic frames: what it finds, where, in which order, and what it
+leaves out."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from testbench.navigation.relative.detectors import LedDetector
+
+
+def _led(img: np.ndarray, u: float, v: float, colour=(255, 40, 40), r: int = 2) -> None:
+    """A lit LED as the renderer draws one: a saturated glow around a near-white core."""
+    glow = tuple(int(0.6 * c + 0.4 * 255) for c in colour)
+    core = tuple(int(0.35 * c + 0.65 * 255) for c in colour)
+    cv2.circle(img, (int(round(u)), int(round(v))), 2 * r, glow, -1, cv2.LINE_AA)
+    cv2.circle(img, (int(round(u)), int(round(v))), r, core, -1, cv2.LINE_AA)
+
+
+def _frame(h: int = 600, w: int = 900) -> np.ndarray:
+    rng = np.random.default_rng(3)
+    return np.clip(rng.normal(90, 12, (h, w, 3)), 0, 255).astype(np.uint8)  # textured dull ground
+
+
+def test_two_vehicles_are_found_in_raster_order_at_their_led_centroids():
+    img = _frame()
+    lower = [(700.0, 400.0), (712.0, 400.0)]  # two LEDs of one vehicle (separate blobs, one group)
+    upper = [(150.0, 120.0), (162.0, 124.0)]  # drawn second, lies higher in the frame
+    for u, v in lower + upper:
+        _led(img, u, v)
+    dets = LedDetector().detect(img)
+    assert len(dets) == 2
+    # Top row first, whatever order OpenCV labels the blobs in.
+    assert dets[0].centre_px[1] < dets[1].centre_px[1]
+    for det, leds in zip(dets, (upper, lower)):
+        assert np.hypot(*(np.asarray(det.centre_px) - np.mean(leds, axis=0))) < 1.0
+        assert len(det.led_px) == 2
+        u0, v0, u1, v1 = det.bbox_px
+        assert all(u0 <= u <= u1 and v0 <= v <= v1 for u, v in leds)
+
+
+def test_nothing_lit_gives_nothing():
+    assert LedDetector().detect(_frame()) == []
+    # Bright but unsaturated (sky, a white roof) is not an LED.
+    img = _frame()
+    img[100:140, 200:260] = 250
+    assert LedDetector().detect(img) == []
+
+
+def test_a_saturated_patch_larger_than_an_led_is_not_one():
+    img = _frame()
+    img[200:240, 300:340] = (255, 60, 60)  # 1600 px of bright red: a painted surface, not a blob
+    _led(img, 600.0, 300.0)
+    dets = LedDetector().detect(img)
+    assert len(dets) == 1 and abs(dets[0].centre_px[0] - 600.0) < 1.0
+
+
+def test_the_data_hue_level_counts_only_the_data_leds():
+    """With data_hue_deg (red data LEDs, a green anchor), led_level is 0.05 + the red LEDs'
+    brightness: clear of zero with only the anchor lit."""
+    anchor_only, with_data = _frame(), _frame()
+    _led(anchor_only, 400.0, 300.0, colour=(40, 255, 40))
+    _led(with_data, 400.0, 300.0, colour=(40, 255, 40))
+    _led(with_data, 408.0, 300.0, colour=(255, 40, 40))
+    det = LedDetector(LedDetector.Params(data_hue_deg=0.0))
+    (a,), (b,) = det.detect(anchor_only), det.detect(with_data)
+    assert a.led_level < 0.1 < 1.0 < b.led_level
