@@ -86,13 +86,18 @@ def frame_for(sensor, world, row, frames_dir: str | None, seed: int = 0) -> np.n
     """Grey uint8 frame at the row's true pose (cached as PNG under frames_dir)."""
     path = os.path.join(frames_dir, f"t{row.t_s:08.2f}.png") if frames_dir else None
     if path and os.path.exists(path):
-        return cv2.imread(path, cv2.IMREAD_GRAYSCALE)
+        cached = cv2.imread(path, cv2.IMREAD_GRAYSCALE)
+        if cached is not None:
+            return cached
     rng = np.random.default_rng([seed, int(round(row.t_s * 1000))])
     fr = sensor.measure(truth_of(row), world, rng)
     grey = cv2.cvtColor(fr.image, cv2.COLOR_RGB2GRAY)
     if path:
+        # Written aside and renamed: another replay sharing the cache never reads half a file.
         os.makedirs(frames_dir, exist_ok=True)
-        cv2.imwrite(path, grey)
+        tmp = f"{path}.{os.getpid()}.png"
+        cv2.imwrite(tmp, grey)
+        os.replace(tmp, path)
     return grey
 
 
