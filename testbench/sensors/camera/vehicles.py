@@ -185,9 +185,9 @@ def _frozen(a: np.ndarray) -> np.ndarray:
 
 def _project_frame(camera: PinholeCamera, C: np.ndarray, R_nc: np.ndarray,
                    vehicles: Sequence[VehicleAppearance], near_m: float, far_m: float) -> _FrameProjection:
-    """One cv2.projectPoints call for every vehicle's vertices, centre and LEDs (a call per
-    vehicle cost more than the drawing in a ten-vehicle swarm), and the per-vehicle truths,
-    vectorised over the vehicles."""
+    """One projection (lens.project_points) of every vehicle's vertices, centre and LEDs
+    together (a call per vehicle cost more than the drawing in a ten-vehicle swarm), and the
+    per-vehicle truths, vectorised over the vehicles."""
     global _last_projection
     # Only an immutable container is recognised again (a list could have changed since).
     cacheable = isinstance(vehicles, tuple)
