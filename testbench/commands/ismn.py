@@ -1,5 +1,7 @@
 """`testbench ismn replay`: a recorded run's camera frames through the scene-matching pipeline,
-open loop (testbench.navigation.ismn.harness), to compare pipeline settings frame by frame."""
+open loop (testbench.navigation.ismn.harness), to compare pipeline settings frame by frame;
+`testbench ismn sensitivity`: how much the fixes follow the estimate they are given
+(testbench.navigation.ismn.sensitivity)."""
 
 from __future__ import annotations
 
@@ -30,6 +32,21 @@ def register(subparsers) -> None:
     r.add_argument("--rows", action="store_true", help="print every frame's row before the summary")
     r.set_defaults(handler=_replay)
 
+    s = sub.add_parser("sensitivity", help="how much a fix follows its prior: d fix / d prior attitude and "
+                                           "position on a run's frames, against the fix's declared coupling")
+    s.add_argument("scenario", help="the scenario the run flew")
+    s.add_argument("run_dir", help="the run's output folder (its telemetry.parquet)")
+    s.add_argument("--set", action="append", help="scenario override key.path=value (repeatable)")
+    s.add_argument("--t0", type=float, default=0.0, help="first frame time, s")
+    s.add_argument("--t1", type=float, default=1e9, help="last frame time, s")
+    s.add_argument("--step", type=float, default=1.0, help="frame spacing, s (a multiple of the 0.1 s record)")
+    s.add_argument("--pipeline", help="pipeline params to override, JSON (e.g. '{\"max_heading_sigma_deg\": null}')")
+    s.add_argument("--tilt-mrad", type=float, default=1.0, help="attitude step of the central differences, mrad")
+    s.add_argument("--shift-m", type=float, default=0.3,
+                   help="position step, m (well under the working ground sample: a whole pixel changes nothing)")
+    s.add_argument("--frames-dir", help="cache of rendered frames (grey PNG)")
+    s.set_defaults(handler=_sensitivity)
+
 
 def _replay(args) -> int:
     from testbench.navigation.ismn.harness import run, summarise
@@ -40,3 +57,15 @@ def _replay(args) -> int:
             print(" ".join(f"{k}={v:.3f}" if isinstance(v, float) else f"{k}={v}" for k, v in row.items()))
     print(json.dumps(summarise(rows), indent=1))
     return 0
+
+
+def _sensitivity(args) -> int:
+    from testbench.core.errors import InputError
+    from testbench.navigation.ismn.sensitivity import run
+
+    if not (args.tilt_mrad > 0 and args.shift_m > 0):
+        raise InputError(f"--tilt-mrad and --shift-m must be > 0 (got {args.tilt_mrad}, {args.shift_m})")
+    summary = run(args)
+    # One line per key (a matrix row-major on its line): valid JSON that reads as a table.
+    print("{\n" + ",\n".join(f" {json.dumps(k)}: {json.dumps(v)}" for k, v in summary.items()) + "\n}")
+    return 0 if summary["n_used"] else 1
