@@ -8,21 +8,26 @@ from __future__ import annotations
 import json
 
 
+def _run_frames_args(parser, step_s: float) -> None:
+    """The arguments every tool over a recorded run's frames takes."""
+    parser.add_argument("scenario", help="the scenario the run flew")
+    parser.add_argument("run_dir", help="the run's output folder (its telemetry.parquet)")
+    parser.add_argument("--set", action="append", help="scenario override key.path=value (repeatable)")
+    parser.add_argument("--t0", type=float, default=0.0, help="first frame time, s")
+    parser.add_argument("--t1", type=float, default=1e9, help="last frame time, s")
+    parser.add_argument("--step", type=float, default=step_s, help="frame spacing, s (a multiple of the 0.1 s record)")
+    parser.add_argument("--pipeline", help="pipeline params to override, JSON (e.g. '{\"n_sigma\": 3}')")
+    parser.add_argument("--frames-dir", help="cache of rendered frames (grey PNG; rendering costs more than matching)")
+
+
 def register(subparsers) -> None:
     p = subparsers.add_parser("ismn", help="scene-matching tools: replay a recorded run's frames through the pipeline")
     sub = p.add_subparsers(dest="ismn_cmd", required=True)
     r = sub.add_parser("replay", help="render a run's camera at its true poses, match with its recorded estimates, "
                                       "score each fix against truth (open loop)")
-    r.add_argument("scenario", help="the scenario the run flew")
-    r.add_argument("run_dir", help="the run's output folder (its telemetry.parquet)")
-    r.add_argument("--set", action="append", help="scenario override key.path=value (repeatable)")
-    r.add_argument("--t0", type=float, default=0.0, help="first frame time, s")
-    r.add_argument("--t1", type=float, default=1e9, help="last frame time, s")
-    r.add_argument("--step", type=float, default=0.5, help="frame spacing, s (a multiple of the 0.1 s record)")
-    r.add_argument("--pipeline", help="pipeline params to override, JSON (e.g. '{\"n_sigma\": 3}')")
+    _run_frames_args(r, 0.5)
     r.add_argument("--matcher", help="matcher params to override, JSON (e.g. '{\"tiles_x\": 9}')")
     r.add_argument("--matcher-type", help="matcher type to use instead of the scenario's (ncc, orb, sift)")
-    r.add_argument("--frames-dir", help="cache of rendered frames (grey PNG; rendering costs more than matching)")
     r.add_argument("--save-bad", type=float, default=5.0, help="save frames whose fix errs by more than this, m")
     r.add_argument("--save-dir", help="where --save-bad frames go (.npz: ortho, map window)")
     r.add_argument("--est-truth", action="store_true", help="estimate = the true pose (+ --est-offset N,E,D) with the recorded sigmas")
@@ -34,17 +39,10 @@ def register(subparsers) -> None:
 
     s = sub.add_parser("sensitivity", help="how much a fix follows its prior: d fix / d prior attitude and "
                                            "position on a run's frames, against the fix's declared coupling")
-    s.add_argument("scenario", help="the scenario the run flew")
-    s.add_argument("run_dir", help="the run's output folder (its telemetry.parquet)")
-    s.add_argument("--set", action="append", help="scenario override key.path=value (repeatable)")
-    s.add_argument("--t0", type=float, default=0.0, help="first frame time, s")
-    s.add_argument("--t1", type=float, default=1e9, help="last frame time, s")
-    s.add_argument("--step", type=float, default=1.0, help="frame spacing, s (a multiple of the 0.1 s record)")
-    s.add_argument("--pipeline", help="pipeline params to override, JSON (e.g. '{\"max_heading_sigma_deg\": null}')")
+    _run_frames_args(s, 1.0)
     s.add_argument("--tilt-mrad", type=float, default=1.0, help="attitude step of the central differences, mrad")
     s.add_argument("--shift-m", type=float, default=0.3,
                    help="position step, m (well under the working ground sample: a whole pixel changes nothing)")
-    s.add_argument("--frames-dir", help="cache of rendered frames (grey PNG)")
     s.set_defaults(handler=_sensitivity)
 
 

@@ -101,18 +101,22 @@ def frame_for(sensor, world, row, frames_dir: str | None, seed: int = 0) -> np.n
     return grey
 
 
-def run(args) -> list[dict]:
+def recorded_rows(run_dir: str, t0_s: float, t1_s: float, step_s: float):
+    """The run's telemetry rows (itertuples) from t0_s to t1_s, one every step_s."""
     import pandas as pd
 
+    tel = pd.read_parquet(os.path.join(run_dir, "telemetry.parquet"))
+    tel = tel[(tel.t_s >= t0_s - 1e-6) & (tel.t_s <= t1_s + 1e-6)]
+    k = np.round(tel.t_s / step_s)
+    return tel[np.abs(tel.t_s - k * step_s) < 1e-6].itertuples()
+
+
+def run(args) -> list[dict]:
     cv2.setNumThreads(1)
     sensor, pipe, world = build(args.scenario, args.set or (), json.loads(args.pipeline or "{}"),
                                 json.loads(args.matcher or "{}"), args.matcher_type)
-    tel = pd.read_parquet(os.path.join(args.run_dir, "telemetry.parquet"))
-    tel = tel[(tel.t_s >= args.t0 - 1e-6) & (tel.t_s <= args.t1 + 1e-6)]
-    k = np.round(tel.t_s / args.step)
-    tel = tel[np.abs(tel.t_s - k * args.step) < 1e-6]
     rows = []
-    for row in tel.itertuples():
+    for row in recorded_rows(args.run_dir, args.t0, args.t1, args.step):
         img = frame_for(sensor, world, row, args.frames_dir)
         est = estimate_of(row)
         if args.est_truth:  # the true pose with the recorded sigmas, plus a chosen offset

@@ -29,7 +29,6 @@ does not.
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -98,18 +97,13 @@ def run(args) -> dict:
     import json
 
     import cv2
-    import pandas as pd
 
-    from testbench.navigation.ismn.harness import build, frame_for, truth_of, estimate_of
+    from testbench.navigation.ismn.harness import build, estimate_of, frame_for, recorded_rows, truth_of
 
     cv2.setNumThreads(1)
     sensor, pipe, world = build(args.scenario, args.set or (), json.loads(args.pipeline or "{}"))
-    tel = pd.read_parquet(os.path.join(args.run_dir, "telemetry.parquet"))
-    tel = tel[(tel.t_s >= args.t0 - 1e-6) & (tel.t_s <= args.t1 + 1e-6)]
-    k = np.round(tel.t_s / args.step)
-    tel = tel[np.abs(tel.t_s - k * args.step) < 1e-6]
     frames, n = [], 0
-    for row in tel.itertuples():
+    for row in recorded_rows(args.run_dir, args.t0, args.t1, args.step):
         n += 1
         truth = truth_of(row)
         # The true pose with the recorded sigmas: the differences are taken where the fix is
