@@ -88,9 +88,13 @@ def pair_key(observer_id: str, peer_id: str) -> str:
 
 
 def _id_rate(rel: pd.DataFrame) -> float | None:
-    if "id_correct" not in rel.columns or len(rel) == 0:
+    """Share of the rows whose ID is known right (id_correct 1) among those scored (1 or 0);
+    nan rows (no truth to check the last bearing against) count neither way. None: none scored."""
+    if "id_correct" not in rel.columns:
         return None
-    return float(np.mean(rel["id_correct"].to_numpy().astype(bool)))
+    known = rel["id_correct"].to_numpy(float)
+    known = known[np.isfinite(known)]
+    return float(np.mean(known == 1.0)) if len(known) else None
 
 
 def compute_relnav(record: RunRecord) -> RelnavMetrics | None:

@@ -193,3 +193,17 @@ def test_synthetic_run_is_consistent_and_deterministic(tmp_path):
     assert 0.85 < fa["nav.nees.position.frac_in_95"] < 1.0
     assert fa["ismn.turning.horizontal_error_m.mean"] > fa["ismn.smooth.horizontal_error_m.mean"]
 
+
+
+def test_relnav_id_rate_leaves_out_rows_without_a_check():
+    """id_correct nan (no truth annotation for the last bearing) is neither right nor wrong."""
+    tel = straight_telemetry(n=20, vehicle_id="a")
+    rel = pd.DataFrame({"t_s": [0.0, 1.0, 2.0], "vehicle_id": ["a"] * 3, "peer_id": ["b"] * 3,
+                        "est_north_m": [0.0] * 3, "est_east_m": [0.0] * 3, "est_down_m": [0.0] * 3,
+                        "truth_north_m": [0.0] * 3, "truth_east_m": [0.0] * 3, "truth_down_m": [0.0] * 3,
+                        "sigma_m": [1.0] * 3, "id_correct": [1.0, 0.0, np.nan]})
+    res = score_record(record_of(tel, {"relnav": rel}, vehicles=[{"id": "a"}]), metrics=[])
+    assert res.relnav.id_correct_rate == pytest.approx(0.5)
+    rel["id_correct"] = np.nan
+    res = score_record(record_of(tel, {"relnav": rel}, vehicles=[{"id": "a"}]), metrics=[])
+    assert res.relnav.id_correct_rate is None
