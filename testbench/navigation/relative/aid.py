@@ -88,7 +88,11 @@ class RelnavAid(NavigationAid):
     Params: cameras (sensor names), detector {type, params}, uwb (sensor name or None),
     uwb_lever_arm_b_m (own antenna; default: the UWB sensor's), target_offset_b_m (where the
     detector's centre lies on a neighbour relative to its CG, its body axes: e.g. the LED
-    centroid; rotated with our own attitude, the neighbour's being unknown), led_rate_hz (default: the
+    centroid; rotated with our own attitude, the neighbour's being unknown),
+    target_offset_by_chip_b_m (the same for a frame in which the track showed blink chip 0 and
+    chip 1, when the detector's centre moves with the chip: the LED centroid of the quad is the
+    top anchor alone, 0.22 m above the CG, or all five LEDs, 0.02 m; used once the track's
+    decoder reads the frame's chip, target_offset_b_m before), led_rate_hz (default: the
     first camera's rate), range_max_age_s (a range this recent may start a filter with a
     bearing), stale_after_s (a neighbour with no bearing fused for this long is forgotten),
     report_max_age_s (the NeighbourTable holds only neighbours with both a bearing and a range
@@ -131,6 +135,7 @@ class RelnavAid(NavigationAid):
         uwb: str | None = "uwb"
         uwb_lever_arm_b_m: tuple[float, float, float] | None = None
         target_offset_b_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+        target_offset_by_chip_b_m: tuple[tuple[float, float, float], tuple[float, float, float]] | None = None
         led_rate_hz: float | None = pydantic.Field(None, gt=0)
         range_max_age_s: float = pydantic.Field(0.5, gt=0)
         stale_after_s: float = pydantic.Field(5.0, gt=0)
@@ -251,7 +256,9 @@ class RelnavAid(NavigationAid):
 
         # The bearing points at the detected point p_peer + R_nb o (o: target offset): fuse it as
         # a bearing to the CG seen from a camera moved by -R_nb o.
-        c_off = R_nb @ (mount.lever_arm_b_m - np.asarray(self.params.target_offset_b_m, float))
+        lever_b = np.asarray(mount.lever_arm_b_m, float)
+        c_off = R_nb @ (lever_b - np.asarray(self.params.target_offset_b_m, float))
+        by_chip = self.params.target_offset_by_chip_b_m
         att_sigma = float(np.sqrt(max(np.max(np.linalg.eigvalsh(np.asarray(est.cov_att_rad2, float))), 0.0)))
         focal = 0.5 * (cam.fx + cam.fy)
         diag = RelnavDiagnostics(t)
@@ -273,7 +280,9 @@ class RelnavAid(NavigationAid):
                     diag.id_rows.append(dict(t_s=t, camera=name, track_id=tr.track_id, decoded_id=peer, truth_id=truth_id,
                                              id_correct=float(peer == truth_id), id_confidence=tr.id_confidence))
             m_xy = undistort_normalized(cam, [det.centre_px])[0]
-            bearing = Bearing(t, m_xy, R_nc, c_off, focal, att_sigma)
+            chip = tr.decoder.chip_at(fi) if by_chip is not None else None
+            off_n = c_off if chip is None else R_nb @ (lever_b - np.asarray(by_chip[chip], float))
+            bearing = Bearing(t, m_xy, R_nc, off_n, focal, att_sigma)
             if peer is None and self.params.predicted_association:
                 peer = self.assoc.predicted_peer(self.filters, bearing, claimed | decoded)
                 if peer is not None:
@@ -290,7 +299,7 @@ class RelnavAid(NavigationAid):
             if why is not None:
                 self.counters[f"bearings_{why}"] += 1
                 continue
-            _, ok = f.update_bearing(t, m_xy, R_nc, c_off, focal, att_sigma, est.vel_ned_mps)
+            _, ok = f.update_bearing(t, m_xy, R_nc, off_n, focal, att_sigma, est.vel_ned_mps)
             self.counters["bearings_used"] += int(ok)
             if ok and truth_id is not None:
                 self.bearing_id_ok[peer] = float(truth_id == peer)

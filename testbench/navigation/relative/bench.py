@@ -29,8 +29,12 @@ ORIGIN = GeodeticOrigin(np.radians(34.0), np.radians(-117.0), 300.0)
 # data_hue_deg = 0 tells the chips apart by colour even when the LEDs overlap at 200 m.
 QUAD_LEDS_B_M = ((0.0, 0.0, -0.20), (0.165, 0.165, -0.03), (0.165, -0.165, -0.03), (-0.165, -0.165, -0.03), (-0.165, 0.165, -0.03))
 LED_RGB = ((40, 255, 40),) + ((255, 40, 40),) * 4
-# Mean LED centroid over the two blink states (anchor alone at z = -0.20; all five: -0.064).
-LED_CENTROID_B_M = (0.0, 0.0, -0.13)
+# The LED detector's centre over the CG (body z, m), per blink chip: the top anchor alone
+# (chip 0, 0.20 m up: -0.21 to -0.23 measured) and all five LEDs (chip 1, brightness-weighted:
+# the four arm LEDs pull it down to -0.04 to +0.02), on rendered quads at 60-250 m; and their
+# mean, used before a track's chips are read.
+LED_CENTROID_BY_CHIP_B_M = ((0.0, 0.0, -0.22), (0.0, 0.0, -0.02))
+LED_CENTROID_B_M = (0.0, 0.0, -0.12)
 LED_DETECTOR = {"type": "led", "params": {"data_hue_deg": 0.0}}
 MOUNTS = {"front": 0.0, "left": -90.0, "right": 90.0}
 
@@ -104,7 +108,8 @@ def simulate_relnav(offsets_ned_m, duration_s: float = 4.0, width_px: int = 960,
                for name in cameras}
     sensors["uwb"] = _Uwb()
     params = dict(cameras=list(cameras), detector=detector or LED_DETECTOR, roi={"enabled": roi},
-                  target_offset_b_m=LED_CENTROID_B_M if detector is None else (0.0, 0.0, 0.0))
+                  target_offset_b_m=LED_CENTROID_B_M if detector is None else (0.0, 0.0, 0.0),
+                  target_offset_by_chip_b_m=LED_CENTROID_BY_CHIP_B_M if detector is None else None)
     params.update(aid_params or {})
     aid = RelnavAid(RelnavAid.Params(**params), ctx=ctx, sensors=sensors, rng=np.random.default_rng(seed + 1))
     imagery = ground_raster(seed)

@@ -67,6 +67,7 @@ class IdDecoder:
         self.obs: deque[tuple[int, float]] = deque(maxlen=int(window))
         self.search_phase = search_phase
         self.min_ratio = min_ratio
+        self._chips: tuple | None = None  # (last observation, count, chips) of the last thresholding
 
     def observe(self, frame_index: int, level: float | None) -> None:
         """Add one frame's LED level of the track (None: the detector saw no LED level)."""
@@ -93,10 +94,23 @@ class IdDecoder:
             return None, None
         fi = np.array([o[0] for o in self.obs])
         bits = chips_from_levels(np.array([o[1] for o in self.obs]), self.min_ratio)
+        self._chips = (self.obs[-1], len(self.obs), bits)
         if bits is None:
             return None, None
         recent = self._likelihood_posterior(fi[-n:], bits[-n:]) if 1 <= n <= len(fi) else None
         return self._likelihood_posterior(fi, bits), recent
+
+    def chip_at(self, frame_index: int) -> int | None:
+        """The chip (0/1) this track showed in LED frame `frame_index`, as thresholded over the
+        window, or None (no observation in that frame, or the levels not yet two clusters)."""
+        if not self.obs or self.obs[-1][0] != frame_index:
+            return None
+        cached = self._chips
+        if cached is not None and cached[0] == self.obs[-1] and cached[1] == len(self.obs):
+            bits = cached[2]  # posteriors() thresholded this very window
+        else:
+            bits = chips_from_levels(np.array([o[1] for o in self.obs]), self.min_ratio)
+        return None if bits is None else int(bits[-1])
 
     def forget_older(self, n: int) -> None:
         """Keep only the last n observations."""

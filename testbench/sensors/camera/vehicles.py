@@ -24,6 +24,9 @@ from testbench.sensors.camera.types import VehicleAppearance, VehicleTruth
 _SUN_NED = np.array([np.cos(np.radians(50)) * np.cos(np.radians(135)),
                      np.cos(np.radians(50)) * np.sin(np.radians(135)), -np.sin(np.radians(50))])
 _SHIFT = 4  # sub-pixel bits for cv2 drawing
+# Draw item kinds: a face, a far vehicle's whole silhouette (its convex hull, which covers its
+# own outboard LEDs without hiding them), an LED.
+_FACE, _SILHOUETTE, _LED = 0, 2, 1
 _LED_OFF_RGB = (35, 35, 38)
 
 
@@ -127,9 +130,9 @@ class _FrameProjection:
     items: dict = field(default_factory=dict)
 
     def draw_items(self, j: int) -> list:
-        """Vehicle j's faces (shaded, back faces culled) and LEDs as (depth m, kind, payload):
-        kind 0 a filled polygon (vertices (k, 2) full-frame px, RGB), kind 1 an LED
-        ((u, v) px, radius px, on, RGB)."""
+        """Vehicle j's faces (shaded, back faces culled) and LEDs as (depth m, kind, payload, j):
+        kind _FACE or _SILHOUETTE a filled polygon (vertices (k, 2) full-frame px, RGB), _LED
+        an LED ((u, v) px, radius px, on, RGB)."""
         if j not in self.items:
             self.items[j] = self._make_items(j)
         return self.items[j]
@@ -154,12 +157,12 @@ class _FrameProjection:
         if max(bbox[2] - bbox[0], bbox[3] - bbox[1]) < _SILHOUETTE_PX:
             hull = cv2.convexHull(uv.astype(np.float32)).reshape(-1, 2).astype(float)
             col = tuple(float(x) for x in np.minimum(255.0, base * float(np.mean((light * shades)[show]))))
-            items.append((float(self.centre_z[j]), 0, (hull, col)))
+            items.append((float(self.centre_z[j]), _SILHOUETTE, (hull, col), j))
         else:
             for i in np.flatnonzero(show):
                 sl = slices[i]
                 col = tuple(float(x) for x in np.minimum(255.0, base * light[i] * shades[i]))
-                items.append((float(z[sl].mean()), 0, (uv[sl], col)))
+                items.append((float(z[sl].mean()), _FACE, (uv[sl], col), j))
         led_z = self.led_z[j]
         for i in range(len(led_z)):
             lz = led_z[i]
@@ -168,7 +171,7 @@ class _FrameProjection:
             on = bool(veh.led_on[i]) if i < len(veh.led_on) else False
             colour = veh.led_colours[i] if i < len(veh.led_colours) else (255, 255, 255)
             r_px = max(0.9, veh.led_radius_m * self.focal_px / lz)
-            items.append((float(lz) - 1e-3 * veh.size_m, 1, ((tr.led_px[i, 0], tr.led_px[i, 1]), r_px, on, colour)))
+            items.append((float(lz) - 1e-3 * veh.size_m, _LED, ((tr.led_px[i, 0], tr.led_px[i, 1]), r_px, on, colour), j))
         return items
 
 
@@ -252,7 +255,7 @@ def draw_vehicles(img: np.ndarray, camera: PinholeCamera, roi_origin: tuple[int,
     pr = _project_frame(camera, np.asarray(centre_ned_m, float), np.asarray(R_nc, float), vehicles, near_m, far_m)
     ou, ov = roi_origin
     rh, rw = img.shape[:2]
-    items = []  # (depth, kind, payload)
+    items = []  # (depth, kind, payload, vehicle index)
     truths = []
     for j, veh in enumerate(vehicles):
         tr = pr.truths[j]
@@ -270,20 +273,50 @@ def draw_vehicles(img: np.ndarray, camera: PinholeCamera, roi_origin: tuple[int,
             continue
         items.extend(pr.draw_items(j))
     items.sort(key=lambda it: -it[0])
+    _paint(img, items, ou, ov)
+    return tuple(truths)
+
+
+def _paint(img: np.ndarray, items: list, ou: int, ov: int) -> None:
+    """Draw the depth-sorted (far first) items into img (the region at full-frame (ou, ov)).
+
+    Faces and LEDs: painter's order. A lit LED's glow is light its core spreads in the camera's
+    optics, not a disc in the scene: nearer faces do not cut it unless they hide the core
+    itself. (Drawn as a disc in depth order, the vehicle's own hub, seen from level, hid the
+    lower half of the top anchor's glow, and the LED detector's centre sat 2.4 px above the
+    anchor.) So a lit LED whose projected centre lies inside no nearer face (exact polygons, not
+    pixels: at 200 m the anchor is half a pixel above the hub; a vehicle's own silhouette, the
+    hull of a far vehicle drawn whole, hides none of its LEDs) gets its glow and core again
+    after everything else, far first; one behind a nearer face shows at most its core's edge."""
     scale = 1 << _SHIFT
-    for _, kind, payload in items:
-        if kind == 0:
+    origin = np.array([ou, ov], float)
+    shown = []  # (centre in 1/2^_SHIFT px, radius px, colour) of the lit LEDs seen
+    for i, (_, kind, payload, owner) in enumerate(items):
+        if kind != _LED or not payload[2]:
+            continue
+        (lu, lv), r_px, _, colour = payload
+        pt = (float(lu), float(lv))
+        hidden = any(k != _LED and not (k == _SILHOUETTE and o == owner)
+                     and cv2.pointPolygonTest(pl[0].astype(np.float32), pt, False) >= 0
+                     for _, k, pl, o in items[i + 1:])
+        if not hidden:
+            shown.append(((int(round((lu - ou) * scale)), int(round((lv - ov) * scale))), r_px, colour))
+    for _, kind, payload, _ in items:
+        if kind != _LED:
             fu, col = payload
-            pts = np.round((fu - [ou, ov]) * scale).astype(np.int32)
+            pts = np.round((fu - origin) * scale).astype(np.int32)
             cv2.fillPoly(img, [pts], col, lineType=cv2.LINE_AA, shift=_SHIFT)
-        else:
+        else:  # the LED itself, lit or not, is an object in the scene
             (lu, lv), r_px, on, colour = payload
             c = (int(round((lu - ou) * scale)), int(round((lv - ov) * scale)))
-            if on:
-                glow = tuple(float(0.6 * x + 0.4 * 255) for x in colour)
-                core = tuple(float(0.35 * x + 0.65 * 255) for x in colour)
-                cv2.circle(img, c, int(round(2.2 * r_px * scale)), glow, -1, cv2.LINE_AA, _SHIFT)
-                cv2.circle(img, c, int(round(r_px * scale)), core, -1, cv2.LINE_AA, _SHIFT)
-            else:
-                cv2.circle(img, c, int(round(r_px * scale)), _LED_OFF_RGB, -1, cv2.LINE_AA, _SHIFT)
-    return tuple(truths)
+            cv2.circle(img, c, int(round(r_px * scale)), _core_rgb(colour) if on else _LED_OFF_RGB, -1,
+                       cv2.LINE_AA, _SHIFT)
+    for c, r_px, colour in shown:
+        glow = tuple(float(0.6 * x + 0.4 * 255) for x in colour)
+        cv2.circle(img, c, int(round(2.2 * r_px * scale)), glow, -1, cv2.LINE_AA, _SHIFT)
+        cv2.circle(img, c, int(round(r_px * scale)), _core_rgb(colour), -1, cv2.LINE_AA, _SHIFT)
+
+
+def _core_rgb(colour) -> tuple[float, float, float]:
+    """A lit LED's core: its colour washed towards white (the sensor saturates)."""
+    return tuple(float(0.35 * x + 0.65 * 255) for x in colour)

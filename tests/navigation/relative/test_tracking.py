@@ -82,6 +82,25 @@ def test_decoder_waits_for_evidence():
     assert chips_from_levels(np.array([4.0, 4.0, 4.1])) is None
 
 
+def test_chip_of_the_current_frame():
+    """chip_at gives the frame's blink chip (the data LEDs lit: 1) once two levels are seen,
+    the same before and after the decoder has scored its window, and None for another frame."""
+    k = 5
+    dec = IdDecoder(8)
+    states = []
+    for fi in range(40, 40 + led_code.CODE_LENGTH):
+        lit = led_code.led_states(k, fi, 5)
+        dec.observe(fi, 0.05 + 30.0 * sum(lit[1:]))  # the data LEDs' level (anchor excluded)
+        states.append(int(all(lit[1:])))
+        if fi == 40:
+            assert dec.chip_at(fi) is None  # one level seen: no threshold yet
+        elif len(set(states)) == 2:
+            before = dec.chip_at(fi)
+            dec.posteriors(4)  # (the tracker scores the window before the aid asks)
+            assert before == dec.chip_at(fi) == states[-1]
+    assert dec.chip_at(40 + led_code.CODE_LENGTH) is None  # a frame it did not see
+
+
 def test_code_properties():
     assert led_code.min_distance(32) >= 4
     for k in range(32):

@@ -239,3 +239,52 @@ def test_fine_checkerboard_from_far_is_flat_grey(pitch_deg):
     assert g.mean() == pytest.approx(127.5, abs=3.0) and g.std() < 3.0
     aliased = render(*args, options=RenderOptions(haze_visibility_m=None, lod_bias=-10.0))
     assert aliased.image[aliased.valid][:, 1].astype(float).std() > 20.0
+
+
+def _anchor_quad(pos, lit=True):
+    """The swarm quad's LED layout: a top anchor 0.20 m above the hub, four arm LEDs (off)."""
+    leds = ((0.0, 0.0, -0.20), (0.165, 0.165, -0.03), (0.165, -0.165, -0.03), (-0.165, -0.165, -0.03), (-0.165, 0.165, -0.03))
+    return VehicleAppearance("q1", np.array(pos, float), np.eye(3), shape="quad", size_m=0.5, colour_rgb=(40, 40, 45),
+                             led_positions_b_m=leds, led_colours=((40, 255, 40),) + ((255, 40, 40),) * 4,
+                             led_on=(lit, False, False, False, False), led_radius_m=0.03)
+
+
+def _green_centroid(image, near_uv, radius_px=8):
+    """Centroid (u, v) of the saturated green pixels within radius_px of near_uv, or None."""
+    import cv2
+
+    hsv = cv2.cvtColor(image, cv2.COLOR_RGB2HSV)
+    green = (np.abs(hsv[..., 0].astype(int) * 2 - 120) < 30) & (hsv[..., 1] > 90) & (hsv[..., 2] > 200)
+    vv, uu = np.mgrid[0:image.shape[0], 0:image.shape[1]]
+    sel = green & (np.hypot(uu - near_uv[0], vv - near_uv[1]) < radius_px)
+    return None if not sel.any() else np.array([uu[sel].mean(), vv[sel].mean()])
+
+
+@pytest.mark.parametrize("range_m", [60.0, 150.0])
+def test_a_lit_leds_glow_is_not_cut_by_its_own_hub(range_m):
+    """Seen from level, the top anchor's glow is centred on the anchor: the glow is light spread
+    by the optics, and a nearer face of the hub does not hide the half of it below the anchor
+    (drawn as a disc in depth order it did: the centroid sat 2.4 px above the anchor)."""
+    img = raster(textured(256), 1.0)
+    cam = PinholeCamera.from_hfov(1920, 1080, 120.0)
+    pos = np.array([0.0, 0.0, -60.0])
+    f = render(cam, mount(0.0), pos, np.eye(3), img, vehicles=[_anchor_quad(pos + [range_m, 0.0, 0.0])], options=NO_HAZE)
+    anchor_uv = f.vehicles[0].led_px[0]
+    c = _green_centroid(f.image, anchor_uv)
+    assert c is not None
+    assert np.hypot(*(c - anchor_uv)) < 0.35  # px
+
+
+def test_a_lit_led_behind_its_hub_is_not_drawn(nadir):
+    """Seen from straight below, the top anchor is behind the hub: no glow at all."""
+    img = raster(textured(256), 1.0)
+    cam = PinholeCamera.from_hfov(640, 480, 60.0)
+    pos = np.array([0.0, 0.0, -40.0])
+    above = mount(90.0)  # looking straight up
+    lit = render(cam, above, pos, np.eye(3), img, vehicles=[_anchor_quad(pos + [0.0, 0.0, -15.0])], options=NO_HAZE)
+    dark = render(cam, above, pos, np.eye(3), img, vehicles=[_anchor_quad(pos + [0.0, 0.0, -15.0], lit=False)], options=NO_HAZE)
+    assert lit.vehicles[0].visible
+    assert _green_centroid(lit.image, lit.vehicles[0].led_px[0]) is None
+    # At most the edge of its core shows past the hub, nothing of a glow.
+    changed = np.abs(lit.image.astype(int) - dark.image.astype(int)).max(axis=-1) > 0
+    assert changed.sum() <= 4
