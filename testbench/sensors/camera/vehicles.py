@@ -291,14 +291,13 @@ def _paint(img: np.ndarray, items: list, ou: int, ov: int) -> None:
     scale = 1 << _SHIFT
     origin = np.array([ou, ov], float)
     shown = []  # (centre in 1/2^_SHIFT px, radius px, colour) of the lit LEDs seen
-    for i, (_, kind, payload, owner) in enumerate(items):
-        if kind != _LED or not payload[2]:
-            continue
-        (lu, lv), r_px, _, colour = payload
-        pt = (float(lu), float(lv))
-        hidden = any(k != _LED and not (k == _SILHOUETTE and o == owner)
-                     and cv2.pointPolygonTest(pl[0].astype(np.float32), pt, False) >= 0
-                     for _, k, pl, o in items[i + 1:])
+    lit = [i for i, (_, kind, payload, _) in enumerate(items) if kind == _LED and payload[2]]
+    polys = [None if k == _LED else pl[0].astype(np.float32) for _, k, pl, _ in items] if lit else []
+    for i in lit:
+        (lu, lv), r_px, _, colour = items[i][2]
+        owner, pt = items[i][3], (float(lu), float(lv))
+        hidden = any(polys[m] is not None and not (items[m][1] == _SILHOUETTE and items[m][3] == owner)
+                     and cv2.pointPolygonTest(polys[m], pt, False) >= 0 for m in range(i + 1, len(items)))
         if not hidden:
             shown.append(((int(round((lu - ou) * scale)), int(round((lv - ov) * scale))), r_px, colour))
     for _, kind, payload, _ in items:
