@@ -17,3 +17,4 @@ def test_oracle_swarm_overrides_turn_off_pixels_and_the_led_offset():
         assert aid.params["detector"]["type"] == "oracle"
         # The oracle reports the vehicle's centre, not the LED centroid the LED detector sees.
         assert list(aid.params["target_offset_b_m"]) == [0.0, 0.0, 0.0]
+        assert aid.params.get("target_offset_by_chip_b_m") is None
