@@ -141,7 +141,13 @@ class SceneMatcher(abc.ABC):
 
 
 class Detector(abc.ABC):
-    """Finds other vehicles in a camera image."""
+    """Finds other vehicles in a camera image.
+
+    centre_reference: the point of a vehicle a detection's centre_px is the image of:
+    "vehicle_centre" (its CG: truth boxes, a CNN trained on CG projections) or "led_centroid"
+    (its lit LEDs: a blob detector), which lies off the CG by a target offset the user gives."""
+
+    centre_reference: str = "vehicle_centre"
 
     @abc.abstractmethod
     def detect(self, image: np.ndarray) -> list[Any]:

@@ -183,6 +183,12 @@ class RelnavAid(NavigationAid):
         if rng is None:
             rng = np.random.default_rng(np.random.SeedSequence([params.seed, zlib.crc32(self.self_id.encode())]))
         self.detector = build("detector", params.detector.type, params.detector.params, "relnav.detector", ctx=ctx, rng=rng)
+        offsets = [params.target_offset_b_m, *(params.target_offset_by_chip_b_m or ())]
+        if getattr(self.detector, "centre_reference", "vehicle_centre") == "vehicle_centre" and np.any(np.asarray(offsets, float)):
+            # (A leftover LED offset with a CG detector biases every bearing: the oracle runs
+            # of the swarm benchmark carried the LED's 0.13 m, swarm_cnn likewise.)
+            raise InputError(f"relnav.target_offset_b_m / target_offset_by_chip_b_m: detector {params.detector.type!r} "
+                             f"reports the vehicle's centre, so the target offsets must be zero (got {offsets})")
         # Detectors that give boxes only (the CNN) get their LED level read inside each box.
         self.led_reader = LedDetector(LedDetector.Params(**params.led_reader))
         tp = params.tracker

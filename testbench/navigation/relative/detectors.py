@@ -38,6 +38,8 @@ class LedDetector(Detector):
        + box_pad_px.
     """
 
+    centre_reference = "led_centroid"
+
     class Params(ParamsModel):
         v_min: int = pydantic.Field(225, ge=0, le=255)
         s_min: int = pydantic.Field(90, ge=0, le=255)
