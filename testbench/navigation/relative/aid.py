@@ -184,6 +184,9 @@ class RelnavAid(NavigationAid):
             rng = np.random.default_rng(np.random.SeedSequence([params.seed, zlib.crc32(self.self_id.encode())]))
         self.detector = build("detector", params.detector.type, params.detector.params, "relnav.detector", ctx=ctx, rng=rng)
         offsets = [params.target_offset_b_m, *(params.target_offset_by_chip_b_m or ())]
+        self._target_b_m = np.asarray(params.target_offset_b_m, float)
+        self._target_by_chip_b_m = (None if params.target_offset_by_chip_b_m is None
+                                    else np.asarray(params.target_offset_by_chip_b_m, float))  # (2, 3)
         if getattr(self.detector, "centre_reference", "vehicle_centre") == "vehicle_centre" and np.any(np.asarray(offsets, float)):
             # (A leftover LED offset with a CG detector biases every bearing: the oracle runs
             # of the swarm benchmark carried the LED's 0.13 m, swarm_cnn likewise.)
@@ -263,8 +266,8 @@ class RelnavAid(NavigationAid):
         # The bearing points at the detected point p_peer + R_nb o (o: target offset): fuse it as
         # a bearing to the CG seen from a camera moved by -R_nb o.
         lever_b = np.asarray(mount.lever_arm_b_m, float)
-        c_off = R_nb @ (lever_b - np.asarray(self.params.target_offset_b_m, float))
-        by_chip = self.params.target_offset_by_chip_b_m
+        c_off = R_nb @ (lever_b - self._target_b_m)
+        by_chip = self._target_by_chip_b_m
         att_sigma = float(np.sqrt(max(np.max(np.linalg.eigvalsh(np.asarray(est.cov_att_rad2, float))), 0.0)))
         focal = 0.5 * (cam.fx + cam.fy)
         diag = RelnavDiagnostics(t)
@@ -287,7 +290,7 @@ class RelnavAid(NavigationAid):
                                              id_correct=float(peer == truth_id), id_confidence=tr.id_confidence))
             m_xy = undistort_normalized(cam, [det.centre_px])[0]
             chip = tr.decoder.chip_at(fi) if by_chip is not None else None
-            off_n = c_off if chip is None else R_nb @ (lever_b - np.asarray(by_chip[chip], float))
+            off_n = c_off if chip is None else R_nb @ (lever_b - by_chip[chip])
             bearing = Bearing(t, m_xy, R_nc, off_n, focal, att_sigma)
             if peer is None and self.params.predicted_association:
                 peer = self.assoc.predicted_peer(self.filters, bearing, claimed | decoded)
