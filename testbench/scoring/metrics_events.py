@@ -89,7 +89,8 @@ def pair_key(observer_id: str, peer_id: str) -> str:
 
 def _id_rate(rel: pd.DataFrame) -> float | None:
     """Share of the rows whose ID is known right (id_correct 1) among those scored (1 or 0);
-    nan rows (no truth to check the last bearing against) count neither way. None: none scored."""
+    nan rows (no truth to check the last bearing against, or a detection of several vehicles
+    alike) count neither way. None: none scored."""
     if "id_correct" not in rel.columns:
         return None
     known = rel["id_correct"].to_numpy(float)
@@ -97,11 +98,24 @@ def _id_rate(rel: pd.DataFrame) -> float | None:
     return float(np.mean(known == 1.0)) if len(known) else None
 
 
+def _ambiguous_rate(rel: pd.DataFrame) -> float | None:
+    """Share of the rows checked against truth (id_ambiguous 0 or 1) whose last bearing's
+    detection imaged several vehicles alike (diagnostics.id_truth): the rows id_correct_rate
+    leaves out as undecidable. None: no such column or no row checked."""
+    if "id_ambiguous" not in rel.columns:
+        return None
+    amb = rel["id_ambiguous"].to_numpy(float)
+    amb = amb[np.isfinite(amb)]
+    return float(np.mean(amb == 1.0)) if len(amb) else None
+
+
 def compute_relnav(record: RunRecord) -> RelnavMetrics | None:
-    """RelnavMetrics from events/relnav.parquet, overall and per observer -> peer pair."""
+    """RelnavMetrics from events/relnav.parquet, overall and per observer -> peer pair, and the
+    decoded track IDs from events/relnav_id.parquet."""
     rel = record.event("relnav")
     if rel is None:
         return None
+    ids = record.event("relnav_id")  # one row per identified track per frame
     err = relnav_errors_m(rel)
     sigma = column(rel, "sigma_m")
     ok_sig = np.isfinite(sigma) & np.isfinite(err)
@@ -115,6 +129,9 @@ def compute_relnav(record: RunRecord) -> RelnavMetrics | None:
     return RelnavMetrics(
         error_m=error_stats(err),
         id_correct_rate=_id_rate(rel),
+        id_ambiguous_rate=_ambiguous_rate(rel),
+        track_id_correct_rate=None if ids is None else _id_rate(ids),
+        track_id_ambiguous_rate=None if ids is None else _ambiguous_rate(ids),
         within_3sigma_rate=within,
         count=int(len(rel)),
         pairs=pairs,

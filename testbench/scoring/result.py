@@ -165,13 +165,24 @@ class RelnavPair(_Section):
 class RelnavMetrics(_Section):
     """Relative navigation: |estimated - true relative position| (m), 3D.
 
-    id_correct_rate: fraction of estimates attributed to the right peer;
+    id_correct_rate: fraction of estimates whose last bearing came from that peer, among those
+    whose detection imaged one vehicle (the truth can decide);
+    id_ambiguous_rate: fraction of the checked estimates whose last bearing's detection imaged
+    several vehicles alike (merged on one line of sight: counted neither right nor wrong);
+    track_id_correct_rate: fraction of the track-frames carrying a decoded ID (every camera
+    frame, every identified track) whose ID names the vehicle the track's detection images,
+    among those that image one vehicle: the IDs' correctness over track-time;
+    track_id_ambiguous_rate: fraction of those track-frames whose detection imaged several
+    vehicles alike;
     within_3sigma_rate: fraction with error <= 3 sigma_m (a calibration check);
     pairs: "<observer>_to_<peer>" -> RelnavPair.
     """
 
     error_m: ErrorStats | None = None
     id_correct_rate: float | None = None
+    id_ambiguous_rate: float | None = None
+    track_id_correct_rate: float | None = None
+    track_id_ambiguous_rate: float | None = None
     within_3sigma_rate: float | None = None
     count: int = 0
     pairs: Mapping[str, RelnavPair] = field(default_factory=dict)

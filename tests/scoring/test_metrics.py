@@ -207,3 +207,35 @@ def test_relnav_id_rate_leaves_out_rows_without_a_check():
     rel["id_correct"] = np.nan
     res = score_record(record_of(tel, {"relnav": rel}, vehicles=[{"id": "a"}]), metrics=[])
     assert res.relnav.id_correct_rate is None
+
+
+def test_relnav_ambiguous_rate_counts_the_undecidable_rows():
+    """Rows whose last bearing imaged several vehicles alike (id_ambiguous 1, id_correct nan)
+    are left out of id_correct_rate and counted in id_ambiguous_rate; rows with no check at all
+    (both nan) in neither."""
+    tel = straight_telemetry(n=20, vehicle_id="a")
+    rel = pd.DataFrame({"t_s": [0.0, 1.0, 2.0, 3.0], "vehicle_id": ["a"] * 4, "peer_id": ["b"] * 4,
+                        "est_north_m": [0.0] * 4, "est_east_m": [0.0] * 4, "est_down_m": [0.0] * 4,
+                        "truth_north_m": [0.0] * 4, "truth_east_m": [0.0] * 4, "truth_down_m": [0.0] * 4,
+                        "sigma_m": [1.0] * 4, "id_correct": [1.0, 0.0, np.nan, np.nan],
+                        "id_ambiguous": [0.0, 0.0, 1.0, np.nan]})
+    res = score_record(record_of(tel, {"relnav": rel}, vehicles=[{"id": "a"}]), metrics=[])
+    assert res.relnav.id_correct_rate == pytest.approx(0.5)
+    assert res.relnav.id_ambiguous_rate == pytest.approx(1 / 3)
+
+
+def test_relnav_track_id_rate_from_the_decoded_track_frames():
+    """relnav_id rows (one per identified track per frame): the share of decidable track-frames
+    whose decoded ID is right, and the share imaging several vehicles alike."""
+    tel = straight_telemetry(n=20, vehicle_id="a")
+    rel = pd.DataFrame({"t_s": [0.0], "vehicle_id": ["a"], "peer_id": ["b"],
+                        "est_north_m": [0.0], "est_east_m": [0.0], "est_down_m": [0.0],
+                        "truth_north_m": [0.0], "truth_east_m": [0.0], "truth_down_m": [0.0],
+                        "sigma_m": [1.0], "id_correct": [1.0], "id_ambiguous": [0.0]})
+    ids = pd.DataFrame({"vehicle_id": ["a"] * 5, "t_s": [0.0, 0.1, 0.2, 0.3, 0.4], "camera": ["front"] * 5,
+                        "track_id": [1] * 5, "decoded_id": ["b"] * 5, "truth_id": ["b", "b", "b", "c", "b"],
+                        "id_correct": [1.0, 1.0, 1.0, 0.0, np.nan], "id_ambiguous": [0.0, 0.0, 0.0, 0.0, 1.0],
+                        "id_confidence": [1.0] * 5})
+    res = score_record(record_of(tel, {"relnav": rel, "relnav_id": ids}, vehicles=[{"id": "a"}]), metrics=[])
+    assert res.relnav.track_id_correct_rate == pytest.approx(0.75)
+    assert res.relnav.track_id_ambiguous_rate == pytest.approx(0.2)

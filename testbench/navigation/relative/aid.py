@@ -27,7 +27,7 @@ from testbench.core.rotations import quat_to_dcm, rotvec_to_quat
 from testbench.navigation.relative.association import AssociationRules, Bearing
 from testbench.navigation.relative.book import NeighbourBook, StartRules
 from testbench.navigation.relative.detectors import LedDetector
-from testbench.navigation.relative.diagnostics import RelnavDiagnostics, id_check
+from testbench.navigation.relative.diagnostics import RelnavDiagnostics, id_truth
 from testbench.navigation.relative.frames import camera_model, frame_camera_name, frame_parts, is_camera_frame
 from testbench.navigation.relative.geometry import project_relative, undistort_normalized
 from testbench.navigation.relative.layout import LayoutParams
@@ -100,12 +100,16 @@ class RelnavAid(NavigationAid):
     direction, e.g. along the line of sight beyond UWB range),
     predicted_association (an undecoded track may feed the neighbour it uniquely matches, when
     that neighbour's estimate is settled: sigma below assoc_max_sigma_m, and no track in any
-    camera carries that neighbour's decoded ID. It keeps neighbours in the table while a new
-    track decodes, which the followers' formation needs: paper swarm, 60 s / 130 s, with it
-    formation RMS 5.7 / 4.0 m, relnav mean 0.30 / 0.27 m, max 9.1 / 9.1 m, IDs 0.94 / 0.92;
-    without it 10.7 / 13.5 m, 0.32 / 0.35 m, 9.2 / 201 m, 0.96 / 0.96. Its risk: the match is
-    unique only among the neighbours we RANGE, and vehicles 200-300 m away, seen but beyond
-    UWB range, can stand on the same line of sight), reset_after_rejects
+    camera carries that neighbour's decoded ID. It keeps in the table the neighbours that
+    stand behind a nearer one on the arrowhead's lines of sight, whose blobs merge with it and
+    whose own tracks rarely decode, and the followers' formation needs them. Its cost, measured
+    on 2026-11-25 (paper swarm, LED): of its associations in a 30 s run 57 % fed a blob of
+    several vehicles alike and 55 % of the rest the wrong vehicle, whose estimate had already
+    been pulled 9 px off; 300 s with / without it: relnav mean 0.186 / 0.184 m, p95 0.41 /
+    0.40 m, max 6.9 / 4.0 m, but formation RMS 2.6 / 4.4 m (max 13 / 29 m: the back row,
+    left with one neighbour 173 m away for 20 s, ran 11 m off its slot in the first turn),
+    table rows 27 257 / 22 917; feeding its bearings with 3x the pixel noise: 0.193 m, 6.4 m,
+    2.6 m; with the oracle detector it changes nothing (60 s: 0.177 / 0.176 m)), reset_after_rejects
     (a neighbour whose bearings were rejected this many times in a row, or whose ranges were
     rejected filter.max_consecutive_rejects times in a row, restarts from the next bearing of a
     track with a decoded ID and the median of the recent ranges; on bearings alone only once
@@ -187,7 +191,8 @@ class RelnavAid(NavigationAid):
         self._target_b_m = np.asarray(params.target_offset_b_m, float)
         self._target_by_chip_b_m = (None if params.target_offset_by_chip_b_m is None
                                     else np.asarray(params.target_offset_by_chip_b_m, float))  # (2, 3)
-        if getattr(self.detector, "centre_reference", "vehicle_centre") == "vehicle_centre" and np.any(np.asarray(offsets, float)):
+        self._centre_reference = getattr(self.detector, "centre_reference", "vehicle_centre")
+        if self._centre_reference == "vehicle_centre" and np.any(np.asarray(offsets, float)):
             # (A leftover LED offset with a CG detector biases every bearing: the oracle runs
             # of the swarm benchmark carried the LED's 0.13 m, swarm_cnn likewise.)
             raise InputError(f"relnav.target_offset_b_m / target_offset_by_chip_b_m: detector {params.detector.type!r} "
@@ -204,12 +209,15 @@ class RelnavAid(NavigationAid):
         self.assoc = AssociationRules(self.fset.bearing_sigma_px, params.assoc_max_sigma_m, params.report_max_age_s,
                                       params.occlusion_margin_m, params.restart_max_jump_m, params.forgotten_speed_mps)
         self.id_conf: dict[str, float] = {}
-        # Diagnostics only: did the last bearing fused for a peer come from that peer (frame truth)?
-        self.bearing_id_ok: dict[str, float] = {}
+        # Diagnostics only: did the last bearing fused for a peer come from that peer (frame
+        # truth)? peer -> (IdTruth.score, ambiguous 1.0/0.0). Vehicles whose expected points lie
+        # within two detection sigmas of each other are alike (diagnostics.id_truth).
+        self.bearing_id_ok: dict[str, tuple[float, float]] = {}
+        self._id_tie_px = 2.0 * self.fset.bearing_sigma_px
         self.last_estimate: NavEstimate | None = None
         self.t_s = 0.0
         self._next_log_t = 0.0
-        self.counters = {"frames": 0, "detections": 0, "id_checks": 0, "id_wrong": 0, "bearings_used": 0, "predicted_assoc": 0, "restarts_refused": 0,
+        self.counters = {"frames": 0, "detections": 0, "id_checks": 0, "id_wrong": 0, "id_ambiguous": 0, "bearings_used": 0, "predicted_assoc": 0, "restarts_refused": 0,
                          "filter_resets": 0, "bearings_occluded": 0, "starts_off_layout": 0,
                          "bearings_closer_to_other": 0}
         self.book = NeighbourBook(
@@ -281,13 +289,14 @@ class RelnavAid(NavigationAid):
         for tr in sorted((x for x in updated if x.confirmed), key=lambda x: -x.id_confidence):
             det = tr.last_detection
             peer = self.ids[tr.id_index] if tr.id_index is not None else None
-            truth_id = id_check(det, truths) if truths else None  # scoring only, never fused
-            if truths:
-                if peer is not None and truth_id is not None:
-                    self.counters["id_checks"] += 1
-                    self.counters["id_wrong"] += int(peer != truth_id)
-                    diag.id_rows.append(dict(t_s=t, camera=name, track_id=tr.track_id, decoded_id=peer, truth_id=truth_id,
-                                             id_correct=float(peer == truth_id), id_confidence=tr.id_confidence))
+            truth = id_truth(det, truths, self._centre_reference, self._id_tie_px) if truths else None  # scoring only, never fused
+            if truth is not None and peer is not None and truth.best is not None:
+                score = truth.score(peer)
+                self.counters["id_checks"] += 1
+                self.counters["id_wrong"] += int(score == 0.0)
+                self.counters["id_ambiguous"] += int(truth.ambiguous)
+                diag.id_rows.append(dict(t_s=t, camera=name, track_id=tr.track_id, decoded_id=peer, truth_id=truth.best,
+                                         id_correct=score, id_ambiguous=float(truth.ambiguous), id_confidence=tr.id_confidence))
             m_xy = undistort_normalized(cam, [det.centre_px])[0]
             chip = tr.decoder.chip_at(fi) if by_chip is not None else None
             off_n = c_off if chip is None else R_nb @ (lever_b - by_chip[chip])
@@ -310,13 +319,15 @@ class RelnavAid(NavigationAid):
                 continue
             _, ok = f.update_bearing(t, m_xy, R_nc, off_n, focal, att_sigma, est.vel_ned_mps)
             self.counters["bearings_used"] += int(ok)
-            if ok and truth_id is not None:
-                self.bearing_id_ok[peer] = float(truth_id == peer)
+            if ok and truth is not None and truth.best is not None:
+                self.bearing_id_ok[peer] = (truth.score(peer), float(truth.ambiguous))
         self.book.drop_stale(t)
         if t + 1e-9 >= self._next_log_t:
             self._next_log_t = t + 1.0 / self.params.log_rate_hz
             diag.table = self.controller_input(t)
-            diag.id_correct = {p: self.bearing_id_ok.get(p, float("nan")) for p in diag.table}
+            nan2 = (float("nan"), float("nan"))
+            diag.id_correct = {p: self.bearing_id_ok.get(p, nan2)[0] for p in diag.table}
+            diag.id_ambiguous = {p: self.bearing_id_ok.get(p, nan2)[1] for p in diag.table}
         return diag
 
     def _with_led_level(self, det, part) -> "Detection":

@@ -90,10 +90,11 @@ def test_a_neighbour_held_by_ranges_alone_is_forgotten():
     assert "n0" not in aid.filters
 
 
-def test_id_check_scores_a_merged_blob_to_the_nearer_vehicle():
-    """Two neighbours on one line of sight: the detection centre lies in both boxes and the one
-    nearer in range (drawn over the other) owns the blob; apart, the box it lies in wins."""
-    from testbench.navigation.relative.diagnostics import id_check
+def test_id_truth_merged_blob_is_undecidable_and_apart_vehicles_are_decided():
+    """Two neighbours on one line of sight, their expected points within the tie distance of
+    the detection: either ID is undecidable (nan, ambiguous); a vehicle 20 px away is decided
+    (right 1.0, the other 0.0), and a third vehicle not imaged is wrong (0.0) even in a tie."""
+    from testbench.navigation.relative.diagnostics import id_truth
     from testbench.navigation.relative.types import Detection
     from testbench.sensors.camera.types import VehicleTruth
 
@@ -102,10 +103,32 @@ def test_id_check_scores_a_merged_blob_to_the_nearer_vehicle():
                             (True,), (True,), True, rng_m)
 
     near, far = truth("near", 500.0, 300.0, 2.0, 100.0), truth("far", 500.6, 300.4, 1.0, 200.0)
-    det = Detection((499.0, 299.0, 502.0, 302.0), (500.5, 300.3), 1.0)
-    assert id_check(det, [far, near]) == "near"
+    merged = id_truth(Detection((499.0, 299.0, 502.0, 302.0), (500.5, 300.3), 1.0), [far, near], tie_px=2.0)
+    assert merged.ambiguous and merged.alike == {"near", "far"}
+    assert np.isnan(merged.score("near")) and np.isnan(merged.score("far")) and merged.score("other") == 0.0
     apart = truth("far", 520.0, 300.0, 1.0, 200.0)
-    assert id_check(Detection((519, 299, 521, 301), (520.2, 300.1), 1.0), [near, apart]) == "far"
+    one = id_truth(Detection((519, 299, 521, 301), (520.2, 300.1), 1.0), [near, apart], tie_px=2.0)
+    assert one.best == "far" and not one.ambiguous and one.score("far") == 1.0 and one.score("near") == 0.0
+    assert np.isnan(id_truth(Detection((0, 0, 2, 2), (1.0, 1.0), 1.0), [near, apart]).score("near"))  # no truth near
+
+
+def test_id_truth_measures_an_led_detection_from_the_lit_leds():
+    """An LED detector's centre is the centroid of the lit LEDs, not the vehicle's centre: a
+    near quad whose lit anchor is 3 px above its centre owns a blob at the anchor, though a far
+    quad's centre (behind it, 2.5 px below the anchor) is nearer to it than the near centre."""
+    from testbench.navigation.relative.diagnostics import id_truth
+    from testbench.navigation.relative.types import Detection
+    from testbench.sensors.camera.types import VehicleTruth
+
+    leds_near = np.array([[500.0, 297.0], [498.0, 300.0]])  # anchor lit, another LED dark
+    near = VehicleTruth("near", (497.0, 296.0, 503.0, 301.0), np.array([500.0, 300.0]), leds_near,
+                        (True, False), (True, True), True, 60.0)
+    far = VehicleTruth("far", (499.0, 299.0, 501.0, 300.0), np.array([500.0, 299.5]), np.array([[500.0, 299.3]]),
+                       (False,), (True,), True, 200.0)
+    det = Detection((499.0, 296.0, 501.0, 298.0), (500.0, 297.1), 1.0)
+    led = id_truth(det, [near, far], reference="led_centroid", tie_px=2.0)
+    assert led.best == "near" and not led.ambiguous
+    assert id_truth(det, [near, far], reference="vehicle_centre", tie_px=2.0).best == "far"
 
 
 def _aid_with_filters(offsets):
