@@ -56,7 +56,11 @@ def run(args: argparse.Namespace) -> int:
     if outcome.abort_reason:
         print(f"aborted: {outcome.abort_reason}", file=sys.stderr)
     if isinstance(m.get("nav.lost_at_s"), (int, float)):
-        print(f"warning: the navigator was lost from t={m['nav.lost_at_s']:.1f} s: its position error stayed beyond "
+        # Which vehicles, when several fly (metrics flattened: vehicles.<id>.nav.lost_at_s).
+        lost = sorted((v, k.split(".")[1]) for k, v in m.items()
+                      if k.startswith("vehicles.") and k.endswith(".nav.lost_at_s") and isinstance(v, (int, float)))
+        who = "" if len(lost) < 2 else " (" + ", ".join(f"{vid} at {t:.1f} s" for t, vid in lost) + ")"
+        print(f"warning: the navigator was lost from t={m['nav.lost_at_s']:.1f} s{who}: its position error stayed beyond "
               "5.5 sigma of its own covariance for 10 s (nav.lost_at_s; see nav.nees in metrics.json)", file=sys.stderr)
     for key in outcome.failed_thresholds:
         print(f"threshold failed: {key}", file=sys.stderr)
