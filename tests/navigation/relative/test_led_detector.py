@@ -65,3 +65,26 @@ def test_the_data_hue_level_counts_only_the_data_leds():
     det = LedDetector(LedDetector.Params(data_hue_deg=0.0))
     (a,), (b,) = det.detect(anchor_only), det.detect(with_data)
     assert a.led_level < 0.1 < 1.0 < b.led_level
+
+
+def test_a_group_with_two_anchors_is_two_vehicles():
+    """Two vehicles 10 px apart (closer than group_px): one detection between them without
+    anchor_hue_deg; with it, one detection at each vehicle's LEDs, each with its own blobs."""
+    img = _frame()
+    near = [(400.0, 300.0, (40, 255, 40)), (396.0, 304.0, (255, 40, 40)), (404.0, 304.0, (255, 40, 40))]
+    far = [(411.0, 301.0, (40, 255, 40)), (413.0, 303.0, (255, 40, 40))]
+    for u, v, c in near + far:
+        _led(img, u, v, colour=c, r=1)
+    merged = LedDetector(LedDetector.Params(data_hue_deg=0.0)).detect(img)
+    assert len(merged) == 1
+    split = LedDetector(LedDetector.Params(data_hue_deg=0.0, anchor_hue_deg=120.0)).detect(img)
+    assert len(split) == 2
+    by_u = sorted(split, key=lambda d: d.centre_px[0])
+    for det, leds in zip(by_u, (near, far)):
+        centroid = np.mean([(u, v) for u, v, _ in leds], axis=0)
+        assert np.hypot(*(np.asarray(det.centre_px) - centroid)) < 1.5
+    # One vehicle alone (one anchor) stays one detection.
+    one = _frame()
+    for u, v, c in near:
+        _led(one, u, v, colour=c, r=1)
+    assert len(LedDetector(LedDetector.Params(data_hue_deg=0.0, anchor_hue_deg=120.0)).detect(one)) == 1
