@@ -31,7 +31,7 @@ from testbench.navigation.relative.diagnostics import RelnavDiagnostics, id_trut
 from testbench.navigation.relative.frames import camera_model, frame_camera_name, frame_parts, is_camera_frame
 from testbench.navigation.relative.geometry import project_relative, undistort_normalized
 from testbench.navigation.relative.layout import LayoutParams
-from testbench.navigation.relative.neighbour_filter import FilterSettings
+from testbench.navigation.relative.neighbour_filter import FilterSettings, constant_velocity_F
 from testbench.navigation.relative.regions import detect_regions, merge_rois, roi_around
 from testbench.navigation.relative.tracking import Tracker, TrackerSettings
 from testbench.navigation.relative.types import Detection, NeighbourTable, RelativeEstimate
@@ -412,8 +412,7 @@ class RelnavAid(NavigationAid):
             if t - min(f.last_bearing_t_s, f.last_range_t_s) > self.params.report_max_age_s:
                 continue  # not observed in both bearing and range lately (see report_max_age_s)
             dt = max(t - f.t_s, 0.0)
-            F = np.eye(6)
-            F[:3, 3:] = dt * np.eye(3)
+            F = constant_velocity_F(dt)
             x = F @ f.x
             P = F @ f.P @ F.T
             table[peer] = RelativeEstimate(t, peer, x[:3].copy(), x[3:].copy(), P[:3, :3].copy(), P[3:, 3:].copy(),

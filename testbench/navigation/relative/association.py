@@ -27,6 +27,9 @@ import numpy as np
 
 from testbench.navigation.relative.neighbour_filter import NeighbourFilter
 
+_I2 = np.eye(2)  # read-only identity, reused by every d2
+_I2.flags.writeable = False
+
 
 @dataclass(frozen=True)
 class Bearing:
@@ -79,7 +82,7 @@ class AssociationRules:
         d = (x - b.cam_offset_ned_m) @ b.R_nc
         if d[2] <= 0.2 * np.linalg.norm(d):
             return float("inf")  # not in front of this camera
-        R = np.eye(2) * ((self.bearing_sigma_px / b.focal_px) ** 2 + b.att_sigma_rad**2)
+        R = _I2 * ((self.bearing_sigma_px / b.focal_px) ** 2 + b.att_sigma_rad**2)
         _, H = f.bearing_model(b.R_nc, b.cam_offset_ned_m)
         S = H @ f.P @ H.T + R
         y = b.m_xy - np.array([d[0] / d[2], d[1] / d[2]])

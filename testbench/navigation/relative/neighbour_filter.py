@@ -31,6 +31,20 @@ from scipy.stats import chi2
 _EVEN_CHANGE_MAX_S = 0.3  # steps longer than this get the own-displacement uncertainty in Q
 
 
+# Identity blocks reused every step (np.eye allocates; these are only ever read).
+_I2 = np.eye(2)
+_I3 = np.eye(3)
+_I6 = np.eye(6)
+_I2.flags.writeable = _I3.flags.writeable = _I6.flags.writeable = False
+
+
+def constant_velocity_F(dt_s: float) -> np.ndarray:
+    """Transition (6, 6) of the relative state [r, w] (NED m, m/s) over dt_s: r += dt_s w."""
+    F = _I6.copy()
+    F[:3, 3:] = dt_s * _I3
+    return F
+
+
 @dataclass(frozen=True)
 class FilterSettings:
     """sigma_accel_mps2: relative acceleration noise; range_sigma_m: UWB noise;
@@ -87,13 +101,12 @@ class NeighbourFilter:
             self.v_self = v.copy()
         if dt <= 0:
             return
-        F = np.eye(6)
-        F[:3, 3:] = dt * np.eye(3)
+        F = constant_velocity_F(dt)
         q = self.s.sigma_accel_mps2**2
         Q = np.zeros((6, 6))
-        Q[:3, :3] = np.eye(3) * q * dt**3 / 3
-        Q[:3, 3:] = Q[3:, :3] = np.eye(3) * q * dt**2 / 2
-        Q[3:, 3:] = np.eye(3) * q * dt
+        Q[:3, :3] = _I3 * q * dt**3 / 3
+        Q[:3, 3:] = Q[3:, :3] = _I3 * q * dt**2 / 2
+        Q[3:, 3:] = _I3 * q * dt
         if dv is not None and dt > _EVEN_CHANGE_MAX_S:
             # Over a long gap our velocity did not change evenly (a follower swinging about its
             # slot): the displacement dv dt / 2 is uncertain by as much again.
@@ -106,7 +119,7 @@ class NeighbourFilter:
         S = H @ self.P @ H.T + R
         K = np.linalg.solve(S, H @ self.P).T
         self.x = self.x + K @ y
-        I_KH = np.eye(6) - K @ H
+        I_KH = _I6 - K @ H
         self.P = I_KH @ self.P @ I_KH.T + K @ R @ K.T  # Joseph form keeps P symmetric PSD
         self.P = 0.5 * (self.P + self.P.T)
 
@@ -136,7 +149,7 @@ class NeighbourFilter:
             self.consecutive_bearing_rejects += 1
             return float("inf"), False
         sig2 = (self.s.bearing_sigma_px / focal_px) ** 2 + att_sigma_rad**2 * (1.0 + m @ m) ** 2
-        R = np.eye(2) * sig2
+        R = _I2 * sig2
         y = m - h
         S = H @ self.P @ H.T + R
         nis = float(y @ np.linalg.solve(S, y))

@@ -67,6 +67,11 @@ class TrackerSettings:
     id_keep_prob: float = 0.5
 
 
+# Identity blocks reused every prediction (read-only).
+_I4 = np.eye(4)
+_I8 = np.eye(8)
+_I4.flags.writeable = _I8.flags.writeable = False
+
 def _z(det: Detection) -> np.ndarray:
     h = max(det.height_px, 1.0)
     return np.array([det.centre_px[0], det.centre_px[1], max(det.width_px, 1.0) / h, h])
@@ -150,11 +155,11 @@ class Tracker:
         dt = t_s - tr.t_s
         if dt <= 0:
             return
-        F = np.eye(8)
-        F[:4, 4:] = dt * np.eye(4)
+        F = _I8.copy()
+        F[:4, 4:] = dt * _I4
         q = self.s.accel_px_s2**2
         qa = np.array([q, q, 0.05**2, (0.05 * tr.kf.x[3, 0] + 2.0) ** 2])
-        G = np.vstack([0.5 * dt**2 * np.eye(4), dt * np.eye(4)])
+        G = np.vstack([0.5 * dt**2 * _I4, dt * _I4])
         tr.kf.F = F
         tr.kf.Q = G @ np.diag(qa) @ G.T
         tr.kf.predict()
@@ -176,14 +181,18 @@ class Tracker:
         zs = [_z(d) for d in detections]
         n, m = len(self.tracks), len(detections)
         cost = np.full((n, m), 1e6)
-        for i, tr in enumerate(self.tracks):
-            Hx = tr.kf.x[:4, 0]
-            for j, z in enumerate(zs):
-                S = tr.kf.P[:4, :4] + self._R(z[3])
-                y = z - Hx
-                d2 = float(y @ np.linalg.solve(S, y))
-                if d2 <= self.gate:
-                    cost[i, j] = d2
+        if n and m:
+            # Every track against every detection in one batched solve (the per-pair solves
+            # were a tenth of the swarm's run time); S_ij = P_i + R(h_j), y_ij = z_j - H x_i.
+            Z = np.array(zs)  # (m, 4)
+            S = np.array([tr.kf.P[:4, :4] for tr in self.tracks])[:, None] + np.array([self._R(z[3]) for z in zs])[None]
+            Y = Z[None, :, :] - np.array([tr.kf.x[:4, 0] for tr in self.tracks])[:, None, :]  # (n, m, 4)
+            X = np.linalg.solve(S, Y[..., None])[..., 0]
+            for i in range(n):
+                for j in range(m):
+                    d2 = float(Y[i, j] @ X[i, j])
+                    if d2 <= self.gate:
+                        cost[i, j] = d2
         matched_t, matched_d = set(), set()
         updated = []
         if n and m:
