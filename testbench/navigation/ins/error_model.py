@@ -14,7 +14,11 @@ Error convention (truth = nominal (+) error):
   as if it were white (which made the covariance several times too small);
 - dfx (3): error of the position-fix (scene-matching) error that successive fixes share
   (origin NED m): overlapping frames matched against the same map disagree with it in the
-  same way (season, map georeference, relief), a Gauss-Markov process along the flight.
+  same way (season, map georeference, relief), a Gauss-Markov process along the flight;
+- dsd (1): error of the rotor-drag scale s (dimensionless): the drag aiding's model is
+  f_b = -mu (1 + s) v_b, and mu, taken at hover, changes with the rotor speeds the manoeuvre
+  needs (a few per mille to a percent), which the filter must not average away as white
+  (it made the drag-aided velocity 5-10x overconfident, the position 4x); Gauss-Markov.
 The nominal biases are subtracted from the raw IMU data: omega = omega_meas - b_g.
 
 Continuous error dynamics (phi-angle model, Titterton & Weston ch. 12 / Groves ch. 14, in
@@ -50,14 +54,15 @@ IBA = slice(12, 15)
 IBB = 15
 IGN = slice(16, 19)
 IFX = slice(19, 22)
-N_STATES = 22
+IDS = 22
+N_STATES = 23
 N_CORE = 15
 """Number of states that truth can be compared with (without the barometer bias)."""
 
 
 def continuous_F(lat_rad, h_m, vel_ned_mps, C_nb, f_n_mps2, tau_g_s, tau_a_s, tau_baro_s=math.inf,
-                 tau_gnss_s=math.inf, tau_fix_s=math.inf):
-    """Continuous-time error-state Jacobian F (22, 22) at one nominal state.
+                 tau_gnss_s=math.inf, tau_fix_s=math.inf, tau_drag_s=math.inf):
+    """Continuous-time error-state Jacobian F (23, 23) at one nominal state.
 
     lat_rad, h_m: nominal position; vel_ned_mps (3,); C_nb (3, 3) body->NED;
     f_n_mps2 (3,): specific force resolved in NED (C_nb f_b); tau_*: bias correlation times (s).
@@ -122,13 +127,15 @@ def continuous_F(lat_rad, h_m, vel_ned_mps, C_nb, f_n_mps2, tau_g_s, tau_a_s, ta
     F[16, 16] = F[17, 17] = F[18, 18] = g
     g = -1.0 / tau_fix_s if math.isfinite(tau_fix_s) else 0.0
     F[19, 19] = F[20, 20] = F[21, 21] = g
+    F[IDS, IDS] = -1.0 / tau_drag_s if math.isfinite(tau_drag_s) else 0.0
     return F
 
 
 def process_noise_diag(noise, baro_bias_rw_m_sqrt_s: float, gnss_error_sigma_m: float = 0.0,
                        gnss_error_tau_s: float = math.inf, fix_error_sigma_m: float | np.ndarray = 0.0,
-                       fix_error_tau_s: float = math.inf) -> np.ndarray:
-    """Diagonal of G Qc G^T (22,): continuous process-noise PSD mapped into the error states.
+                       fix_error_tau_s: float = math.inf, drag_scale_sigma: float = 0.0,
+                       drag_scale_tau_s: float = math.inf) -> np.ndarray:
+    """Diagonal of G Qc G^T (23,): continuous process-noise PSD mapped into the error states.
 
     The white gyro and accelerometer noises enter through -C_nb; they are isotropic, so
     C_nb (s^2 I) C_nb^T = s^2 I and the mapped PSD stays diagonal. Bias driving noise of a
@@ -145,6 +152,7 @@ def process_noise_diag(noise, baro_bias_rw_m_sqrt_s: float, gnss_error_sigma_m: 
     q[IGN] = 2.0 * gnss_error_sigma_m**2 / gnss_error_tau_s if math.isfinite(gnss_error_tau_s) else 0.0
     # fix_error_sigma_m: one figure or (3,) per NED axis.
     q[IFX] = 2.0 * np.square(fix_error_sigma_m) / fix_error_tau_s if math.isfinite(fix_error_tau_s) else 0.0
+    q[IDS] = 2.0 * drag_scale_sigma**2 / drag_scale_tau_s if math.isfinite(drag_scale_tau_s) else 0.0
     return q
 
 

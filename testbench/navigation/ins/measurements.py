@@ -1,5 +1,5 @@
 """Measurement models of the error-state EKF: residual y = z - h(nominal), Jacobian
-H = d h(nominal (+) error) / d error at zero error (22 columns, error_model layout), noise R.
+H = d h(nominal (+) error) / d error at zero error (23 columns, error_model layout), noise R.
 
 Each function takes the filter (`ErrorStateEKF`) for its nominal state and returns (y, H, R).
 """
@@ -16,7 +16,7 @@ from testbench.core.errors import InputError
 from testbench.core.units import STANDARD_GRAVITY_MPS2
 from testbench.core.interfaces import GeodeticOrigin
 from testbench.core.rotations import dcm_to_euler, skew, wrap_pi
-from testbench.navigation.ins.error_model import IA, IBA, IBB, IFX, IGN, IP, IV, N_STATES
+from testbench.navigation.ins.error_model import IA, IBA, IBB, IDS, IFX, IGN, IP, IV, N_STATES
 
 
 def gnss_position(ekf, lat_rad: float, lon_rad: float, alt_m: float, sigma_ned_m):
@@ -169,17 +169,22 @@ def momentum_drag_per_s(aircraft: dict) -> float:
 
 def drag_specific_force(ekf, f_b_xy_mps2, v_b_xy_mps, mu_per_s: float, sigma_mps2: float):
     """Rotor-drag aiding: the accelerometers' body x, y specific force (2,) m/s^2, averaged
-    over an interval, against h = -mu v_b_xy + b_a_xy (calm air: air and ground velocity
-    agree), v_b_xy (2,) the nominal body velocity averaged over the same interval.
+    over an interval, against h = -mu (1 + s) v_b_xy + b_a_xy (calm air: air and ground
+    velocity agree; s = ekf.drag_scale, the filter's estimate of the scale error of mu), v_b_xy
+    (2,) the nominal body velocity averaged over the same interval.
 
     With C_true = (I + [phi x]) C_nb and v_true = v + dv: v_b_true = C^T v + C^T dv + C^T [v x] phi,
-    so H_v = -mu S C^T, H_phi = -mu S C^T [v x], H_ba = S (S: the body x and y rows)."""
+    so with m = mu (1 + s): H_v = -m S C^T, H_phi = -m S C^T [v x], H_ba = S (S: the body x and
+    y rows), H_s = -mu v_b_xy."""
     C = ekf.C_nb
     v = np.array(ekf.ins.vel)
-    y = np.asarray(f_b_xy_mps2, float) - (-mu_per_s * np.asarray(v_b_xy_mps, float) + ekf.b_a[:2])
+    v_b = np.asarray(v_b_xy_mps, float)
+    mu_eff = mu_per_s * (1.0 + ekf.drag_scale)
+    y = np.asarray(f_b_xy_mps2, float) - (-mu_eff * v_b + ekf.b_a[:2])
     H = np.zeros((2, N_STATES))
     Ct = C.T[:2]
-    H[:, IV] = -mu_per_s * Ct
-    H[:, IA] = -mu_per_s * Ct @ skew(v)
+    H[:, IV] = -mu_eff * Ct
+    H[:, IA] = -mu_eff * Ct @ skew(v)
     H[:, IBA] = np.eye(3)[:2]
+    H[:, IDS] = -mu_per_s * v_b
     return y, H, np.eye(2) * sigma_mps2**2

@@ -29,7 +29,7 @@ from testbench.core.units import DEG_TO_RAD, STANDARD_GRAVITY_MPS2
 from testbench.navigation.ins import measurements as meas
 from testbench.navigation.ins.consistency import error_state
 from testbench.navigation.ins.ekf import ErrorStateEKF
-from testbench.navigation.ins.error_model import IA, IBA, IBB, IBG, IFX, IGN, IP, IV, N_STATES
+from testbench.navigation.ins.error_model import IA, IBA, IBB, IBG, IDS, IFX, IGN, IP, IV, N_STATES
 from testbench.navigation.ins.imu_noise import imu_noise_from_datasheet, preset_datasheet, preset_names, preset_scale_error
 from testbench.navigation.ins.magnetic import OnboardMagneticModel
 from testbench.navigation.ins.settings import DragAiding, ImuNoiseParams, InitialSigmas, MeasurementSigmas
@@ -165,6 +165,8 @@ class InsEkfNavigator(Navigator):
             gyro_scale_sigma=(preset_scale_error(params.imu_preset) if params.gyro_scale_error is None
                               else params.gyro_scale_error),
             scale_corr_angle_rad=math.radians(params.scale_error_angle_deg),
+            drag_scale_sigma=0.0 if params.drag_aiding is None else params.drag_aiding.scale_sigma,
+            drag_scale_tau_s=math.inf if params.drag_aiding is None else params.drag_aiding.scale_tau_s,
         )
         self._mag_model: OnboardMagneticModel | None = None
         self._airspeed: float | None = None
@@ -201,7 +203,7 @@ class InsEkfNavigator(Navigator):
         self._estimate = None
 
     def initial_covariance(self) -> np.ndarray:
-        """P0 (22, 22) from Params.initial_sigma (GNSS and fix error states: their steady state)."""
+        """P0 (23, 23) from Params.initial_sigma (GNSS and fix error states and the drag scale: their steady state)."""
         s = self.params.initial_sigma
         d = np.empty(N_STATES)
         d[IP] = s.pos_m
@@ -216,6 +218,7 @@ class InsEkfNavigator(Navigator):
         d[IBB] = s.baro_bias_m
         d[IGN] = self.params.gnss_error_sigma_m
         d[IFX] = self.fix_error_sigma_ned_m
+        d[IDS] = 0.0 if self.params.drag_aiding is None else self.params.drag_aiding.scale_sigma
         return np.diag(d**2)
 
     def predict(self, imu: ImuSample) -> None:
@@ -327,7 +330,7 @@ class InsEkfNavigator(Navigator):
 
     # ------------------------------------------------------------------ extras
     def covariance(self) -> np.ndarray:
-        """Full error covariance (22, 22) in the filter's own frames (error_model layout)."""
+        """Full error covariance (23, 23) in the filter's own frames (error_model layout)."""
         return self.ekf.covariance()
 
     def error_state(self, truth: TruthState, gyro_bias_rps=None, accel_bias_mps2=None) -> np.ndarray:

@@ -80,3 +80,58 @@ def test_drag_aiding_on_an_aircraft_without_rotor_drag_is_bad_input(tmp_path, ca
     assert main(["run", str(path), "--out", str(tmp_path / "o"), "--no-report", "--quiet"]) == 2
     err = capsys.readouterr().err
     assert "drag_aiding" in err and "rotor drag" in err
+
+
+# ---- the drag scale state (error_model dsd): the slow part of mu's error ------------------------
+
+def _level_ekf(scale_sigma: float):
+    """EKF flying north at 4 m/s, level, its nominal at the truth; P0 from small sigmas."""
+    from testbench.navigation.ins.ekf import ErrorStateEKF
+    from testbench.navigation.ins.error_model import IA, IBA, IBG, IDS, IP, IV, N_STATES
+    from testbench.navigation.ins.imu_noise import imu_noise_from_datasheet
+
+    ekf = ErrorStateEKF(imu_noise_from_datasheet(0.15, 7.0, 0.02, 14.0), drag_scale_sigma=scale_sigma,
+                        drag_scale_tau_s=60.0)
+    d = np.zeros(N_STATES)
+    d[IP], d[IV], d[IA] = 1.0, 0.3, 1e-3
+    d[IBG], d[IBA] = 1e-5, 1.4e-4
+    d[IDS] = scale_sigma
+    ekf.initialize(0.0, 0.82, -1.73, 600.0, [4.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0], np.diag(d**2 + 1e-30))
+    return ekf, IV, IDS
+
+
+def _fuse_drag(ekf, true_scale: float, n: int, gnss_velocity: bool) -> None:
+    from testbench.navigation.ins import measurements as meas
+
+    mu = 0.365
+    v_b = np.array([4.0, 0.0])  # level, nose north: body x = north
+    for _ in range(n):
+        y, H, R = meas.drag_specific_force(ekf, -mu * (1.0 + true_scale) * v_b, v_b, mu, 0.05)
+        ekf.update("drag", 0.0, y, H, R)
+        if gnss_velocity:
+            ekf.update("gnss_vel", 0.0, *meas.gnss_velocity(ekf, [4.0, 0.0, 0.0], [0.02] * 3))
+
+
+def test_drag_scale_is_learnt_while_the_velocity_is_known():
+    """mu read 0.8 % low: with GNSS velocity the filter puts the difference in the scale (not in
+    the velocity or the accelerometer bias) and brings its sigma down from 1 %."""
+    ekf, IV, IDS = _level_ekf(0.01)
+    _fuse_drag(ekf, 0.008, 150, gnss_velocity=True)
+    sigma = float(np.sqrt(ekf.P[IDS, IDS]))
+    assert ekf.drag_scale == pytest.approx(0.008, abs=3 * sigma)
+    assert sigma < 0.004  # 0.0027
+    assert abs(ekf.ins.vel[0] - 4.0) < 0.01
+
+
+def test_drag_aided_velocity_claims_no_better_than_the_scale_allows():
+    """Without GNSS the drag aiding cannot tell speed from scale: the along-track velocity sigma
+    stays near sigma_s |v| (0.04 m/s at 1 %, 4 m/s) however many samples are fused; with the
+    scale taken as exact the same samples claim millimetres per second."""
+    with_scale, IV, _ = _level_ekf(0.01)
+    _fuse_drag(with_scale, 0.0, 300, gnss_velocity=False)
+    exact, _, _ = _level_ekf(0.0)
+    _fuse_drag(exact, 0.0, 300, gnss_velocity=False)
+    s_with = float(np.sqrt(with_scale.P[IV.start, IV.start]))
+    s_exact = float(np.sqrt(exact.P[IV.start, IV.start]))
+    assert 0.025 < s_with < 0.045
+    assert s_exact < 0.012  # 0.008 (with the scale: 0.040)

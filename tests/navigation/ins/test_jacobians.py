@@ -91,6 +91,7 @@ def _ekf_at(x_hat):
     ekf.b_gnss = np.array([0.7, -0.4, 1.1])
     ekf.b_fix = np.array([-0.3, 0.8, 0.2])
     ekf.b_baro = 1.5
+    ekf.drag_scale = 0.02
     return ekf
 
 
@@ -110,7 +111,7 @@ def _numeric_H(ekf, model, steps):
     return H
 
 
-STEPS = np.array([1.0] * 3 + [0.01] * 3 + [1e-5] * 3 + [1e-6] * 3 + [1e-3] * 3 + [0.1] + [0.1] * 6)
+STEPS = np.array([1.0] * 3 + [0.01] * 3 + [1e-5] * 3 + [1e-6] * 3 + [1e-3] * 3 + [0.1] + [0.1] * 6 + [1e-3])
 X_HAT = (0.7, -1.6, 1200.0, np.array([40.0, -25.0, 3.0]), euler_to_quat(np.radians([8.0, -4.0, 140.0])))
 ORIGIN = GeodeticOrigin(0.7 - 3000 / 6.37e6, -1.6 + 2000 / 4.9e6, 300.0)
 B_NED = np.array([17e-6, 1e-6, 52e-6])
