@@ -17,8 +17,9 @@ Error convention (truth = nominal (+) error):
   same way (season, map georeference, relief), a Gauss-Markov process along the flight;
 - dsd (1): error of the rotor-drag scale s (dimensionless): the drag aiding's model is
   f_b = -mu (1 + s) v_b, and mu, taken at hover, changes with the rotor speeds the manoeuvre
-  needs (a few per mille to a percent), which the filter must not average away as white
-  (it made the drag-aided velocity 5-10x overconfident, the position 4x); Gauss-Markov.
+  needs (a few per mille to a percent) and lasts for a minute, which the filter must not
+  average away as white noise (that left the drag-aided position 2-11 m off against 2.3 m
+  claimed, NEES 7.7 for 2 dof, in paper_swarm_relnav); Gauss-Markov.
 The nominal biases are subtracted from the raw IMU data: omega = omega_meas - b_g.
 
 Continuous error dynamics (phi-angle model, Titterton & Weston ch. 12 / Groves ch. 14, in
