@@ -10,16 +10,22 @@ mirrored about its course, so uav5's UWB range agreed) and kept it 200 m off for
 (paper_swarm_relnav, 300 s, LED). The layout refuses such a start; it never touches the fusion
 of a running estimate, which follows the real neighbour wherever it flies.
 
-The course chi is this vehicle's own: its estimated ground course above `min_speed_mps`, else
-its estimated yaw (a hovering multirotor). A follower's course differs from the formation's
-while it turns or closes on its slot, so the check allows `course_allowance_deg` of rotation
-(a distance-proportional margin) on top of `tolerance_m` for slot errors.
+The course chi is this vehicle's own: by default its estimated yaw (`course_from: yaw`): a
+formation follower keeps its nose on the formation course it estimates even while it slides
+sideways towards its slot, when its ground course says nothing of the formation's (swarm_cnn,
+uav7 at 5.7 s: ground course -52 deg at 1.05 m/s, nose 0.2 deg; taken from the velocity, the
+layout turned by -52 deg let a track of uav2 decoded as uav9, both 200 m away, start uav7's
+estimate of uav9 200 m off). `course_from: velocity` takes the estimated ground course above
+`min_speed_mps`, else the yaw (for a fixed wing crabbing in wind). The follower's course still
+differs from the formation's while it turns, so the check allows `course_allowance_deg` of
+rotation (a distance-proportional margin) on top of `tolerance_m` for slot errors.
 Nothing here reads another vehicle's state: the slots are mission data, the course our own.
 """
 
 from __future__ import annotations
 
 import math
+from typing import Literal
 
 import numpy as np
 import pydantic
@@ -33,11 +39,13 @@ class LayoutParams(ParamsModel):
     the formation course); tolerance_m: how far a neighbour may be from its slot-predicted
     relative position (horizontal) and still start an estimate; course_allowance_deg: rotation
     of the layout allowed on top (margin = tolerance_m + sin(allowance) x slot distance);
-    min_speed_mps: below this ground speed the course is taken from the yaw."""
+    course_from: the own course the layout is turned by, "yaw" or "velocity" (module
+    docstring); min_speed_mps: with "velocity", below this ground speed the yaw is taken."""
 
     slots: dict[str, tuple[float, float, float]]
     tolerance_m: float = pydantic.Field(40.0, gt=0)
     course_allowance_deg: float = pydantic.Field(10.0, ge=0, le=90)
+    course_from: Literal["yaw", "velocity"] = "yaw"
     min_speed_mps: float = pydantic.Field(1.0, ge=0)
 
 
@@ -63,7 +71,7 @@ def start_fits_layout(p: LayoutParams, self_id: str, peer_id: str, r_ned_m, vel_
     """Whether a neighbour estimate may start at relative position r_ned_m (3,) NED m: its
     horizontal distance from the slot-predicted position within tolerance_m + sin(allowance)
     x slot distance. True when the layout does not name both vehicles."""
-    course = own_course_rad(vel_ned_mps, yaw_rad, p.min_speed_mps)
+    course = float(yaw_rad) if p.course_from == "yaw" else own_course_rad(vel_ned_mps, yaw_rad, p.min_speed_mps)
     exp = expected_relative_ned_m(p, self_id, peer_id, course)
     if exp is None:
         return True

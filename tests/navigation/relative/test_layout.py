@@ -37,3 +37,17 @@ def test_a_start_on_the_mirrored_vehicle_is_refused_and_near_its_slot_accepted()
     assert start_fits_layout(p, "uav0", "uav5", turned, vel, 0.0)
     # A vehicle the layout does not name is never refused.
     assert start_fits_layout(p, "uav0", "uav9", uav3_where, vel, 0.0)
+
+
+def test_the_layout_turns_with_the_nose_not_with_a_sideways_slide():
+    """swarm_cnn, uav7 at 5.7 s: sliding at 1.05 m/s on a -52 deg ground course, nose 0.2 deg.
+    A track of uav2 (173 m ahead, 100 m right) decoded as uav9 (200 m right, same row; both
+    200 m away, so the UWB range agrees) is refused by the nose's layout; turned by the ground
+    course the layout put uav9 where uav2 is."""
+    slots = {"uav2": (-86.603, 50.0, 0.0), "uav7": (-259.808, -50.0, 0.0), "uav9": (-259.808, 150.0, 0.0)}
+    vel = np.array([0.65, -0.82, 0.0])
+    uav2_where = np.array([173.2, 100.0, 0.0])
+    assert not start_fits_layout(LayoutParams(slots=slots), "uav7", "uav9", uav2_where, vel, math.radians(0.2))
+    assert start_fits_layout(LayoutParams(slots=slots), "uav7", "uav2", uav2_where, vel, math.radians(0.2))
+    assert start_fits_layout(LayoutParams(slots=slots, course_from="velocity"), "uav7", "uav9", uav2_where, vel,
+                             math.radians(0.2))
