@@ -29,6 +29,7 @@ from scipy.stats import chi2
 
 from testbench.core.errors import SimulationAborted
 from testbench.core.messages import CorrectionInfo
+from testbench.core.rotations import quat_to_dcm
 from testbench.core.units import STANDARD_GRAVITY_MPS2
 from testbench.navigation.ins.error_model import (
     IA,
@@ -153,12 +154,7 @@ class ErrorStateEKF:
     @property
     def C_nb(self) -> np.ndarray:
         """Nominal attitude R_nb (3, 3), body FRD -> NED."""
-        qw, qx, qy, qz = self.ins.q
-        return np.array([
-            [1 - 2 * (qy * qy + qz * qz), 2 * (qx * qy - qw * qz), 2 * (qx * qz + qw * qy)],
-            [2 * (qx * qy + qw * qz), 1 - 2 * (qx * qx + qz * qz), 2 * (qy * qz - qw * qx)],
-            [2 * (qx * qz - qw * qy), 2 * (qy * qz + qw * qx), 1 - 2 * (qx * qx + qy * qy)],
-        ])
+        return quat_to_dcm(self.ins.q)
 
     def covariance(self) -> np.ndarray:
         """Current error covariance (23, 23), with any pending propagation applied."""

@@ -154,6 +154,8 @@ class InsEkfNavigator(Navigator):
         down = params.fix_error_sigma_m if params.fix_error_sigma_down_m is None else params.fix_error_sigma_down_m
         self.fix_error_sigma_ned_m = np.array([params.fix_error_sigma_m, params.fix_error_sigma_m, down])
         """(3,) m: steady-state sigma of the shared fix error per axis (north, east, down)."""
+        self.drag_scale_sigma = 0.0 if params.drag_aiding is None else params.drag_aiding.scale_sigma
+        """Steady-state sigma of the drag model's scale error (0 without drag aiding)."""
         self.ekf = ErrorStateEKF(
             self.noise, gate_probability=params.gate_probability,
             cov_interval_s=params.cov_interval_s,
@@ -165,7 +167,7 @@ class InsEkfNavigator(Navigator):
             gyro_scale_sigma=(preset_scale_error(params.imu_preset) if params.gyro_scale_error is None
                               else params.gyro_scale_error),
             scale_corr_angle_rad=math.radians(params.scale_error_angle_deg),
-            drag_scale_sigma=0.0 if params.drag_aiding is None else params.drag_aiding.scale_sigma,
+            drag_scale_sigma=self.drag_scale_sigma,
             drag_scale_tau_s=math.inf if params.drag_aiding is None else params.drag_aiding.scale_tau_s,
         )
         self._mag_model: OnboardMagneticModel | None = None
@@ -218,7 +220,7 @@ class InsEkfNavigator(Navigator):
         d[IBB] = s.baro_bias_m
         d[IGN] = self.params.gnss_error_sigma_m
         d[IFX] = self.fix_error_sigma_ned_m
-        d[IDS] = 0.0 if self.params.drag_aiding is None else self.params.drag_aiding.scale_sigma
+        d[IDS] = self.drag_scale_sigma
         return np.diag(d**2)
 
     def predict(self, imu: ImuSample) -> None:
