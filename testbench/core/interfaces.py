@@ -145,9 +145,13 @@ class Detector(abc.ABC):
 
     centre_reference: the point of a vehicle a detection's centre_px is the image of:
     "vehicle_centre" (its CG: truth boxes, a CNN trained on CG projections) or "led_centroid"
-    (its lit LEDs: a blob detector), which lies off the CG by a target offset the user gives."""
+    (its lit LEDs: a blob detector), which lies off the CG by a target offset the user gives.
+    box_shows_extent: whether a detection's box is the vehicle's own outline (truth boxes, a
+    CNN), so that its size follows from the vehicle's size and range; False for an LED blob
+    detector, whose box is the LEDs' glow (14 x 10 px from 100 m as from 200 m)."""
 
     centre_reference: str = "vehicle_centre"
+    box_shows_extent: bool = True
 
     @abc.abstractmethod
     def detect(self, image: np.ndarray) -> list[Any]:

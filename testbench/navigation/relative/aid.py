@@ -128,6 +128,16 @@ class RelnavAid(NavigationAid):
     layout (the formation's slot table, mission data every vehicle carries: a start or restart
     farther from the slot-predicted position than its tolerance is refused, layout.py; None:
     no such check),
+    target_extent_m (the largest extent of the formation's vehicles, m, e.g. a quad's 0.55 m
+    rotor-tip diagonal: a detection whose box is larger than box_size_factor times what that
+    extent makes at the nearest neighbour's UWB range, plus box_slack_px, is no neighbour and
+    is dropped before tracking; None: no such check; only for detectors whose box is the
+    vehicle's outline (Detector.box_shows_extent: not the LED detector). Why: the CNN now and
+    then draws a box of 100-180 px about the horizon, where a quad at 100-270 m makes 1-12 px;
+    the LED reader then read several vehicles' LEDs inside it, the track decoded an ID from
+    that mixture, and it started estimates on another vehicle's line of sight 30-60 m off
+    (swarm_cnn, 18 s, the horizon then a black no-data band: 9 of 81 starts; with haze and
+    sky there, 30 s: 191 boxes dropped, relnav mean 0.31 -> 0.27 m, max 13.0 -> 7.3 m),
     log_rate_hz (rows of table "relnav"), led_reader (params of the LED detector that reads
     the blink level inside boxes from detectors without LED output, e.g. the CNN), seed (oracle noise when no rng is injected), roi,
     filter, tracker.
@@ -154,6 +164,9 @@ class RelnavAid(NavigationAid):
         occlusion_margin_m: float = pydantic.Field(10.0, ge=0)
         skip_ambiguous: bool = True
         layout: LayoutParams | None = None
+        target_extent_m: float | None = pydantic.Field(None, gt=0)
+        box_size_factor: float = pydantic.Field(3.0, ge=1)
+        box_slack_px: float = pydantic.Field(4.0, ge=0)
         log_rate_hz: float = pydantic.Field(2.0, gt=0)
         led_reader: dict = {}
         seed: int = 0
@@ -197,6 +210,9 @@ class RelnavAid(NavigationAid):
             # of the swarm benchmark carried the LED's 0.13 m, swarm_cnn likewise.)
             raise InputError(f"relnav.target_offset_b_m / target_offset_by_chip_b_m: detector {params.detector.type!r} "
                              f"reports the vehicle's centre, so the target offsets must be zero (got {offsets})")
+        if params.target_extent_m is not None and not getattr(self.detector, "box_shows_extent", True):
+            raise InputError(f"relnav.target_extent_m: detector {params.detector.type!r} reports boxes of the LEDs' glow, "
+                             f"not of the vehicle, so their size says nothing of the range: leave target_extent_m unset")
         # Detectors that give boxes only (the CNN) get their LED level read inside each box.
         self.led_reader = LedDetector(LedDetector.Params(**params.led_reader))
         tp = params.tracker
@@ -219,7 +235,8 @@ class RelnavAid(NavigationAid):
         self._next_log_t = 0.0
         self.counters = {"frames": 0, "detections": 0, "id_checks": 0, "id_wrong": 0, "id_ambiguous": 0, "bearings_used": 0, "predicted_assoc": 0, "restarts_refused": 0,
                          "filter_resets": 0, "bearings_occluded": 0, "starts_off_layout": 0,
-                         "bearings_closer_to_other": 0}
+                         "bearings_closer_to_other": 0,
+                         "detections_oversize": 0}
         self.book = NeighbourBook(
             self.self_id,
             StartRules(params.reset_after_rejects, params.reset_bearing_after_s, params.tracker.id_confidence,
@@ -261,7 +278,7 @@ class RelnavAid(NavigationAid):
             rois = None
             if part.full and not full_due:
                 rois = self._track_rois(name, t)
-            found = detect_regions(self.detector, part.image, rois, part.origin_uv, part.truths)
+            found = self._plausible_size(detect_regions(self.detector, part.image, rois, part.origin_uv, part.truths), cam, t)
             dets.extend(self._with_led_level(d, part) if d.led_level is None else d for d in found)
             truths.extend(part.truths)
         self.counters["frames"] += 1
@@ -319,8 +336,11 @@ class RelnavAid(NavigationAid):
                 continue
             _, ok = f.update_bearing(t, m_xy, R_nc, off_n, focal, att_sigma, est.vel_ned_mps)
             self.counters["bearings_used"] += int(ok)
-            if ok and truth is not None and truth.best is not None:
-                self.bearing_id_ok[peer] = (truth.score(peer), float(truth.ambiguous))
+            if ok:
+                # Unknown (nan) when the frame has no truth or the detection lies on no vehicle:
+                # a score left over from an earlier bearing would speak for this one.
+                self.bearing_id_ok[peer] = ((truth.score(peer), float(truth.ambiguous))
+                                            if truth is not None and truth.best is not None else (float("nan"), float("nan")))
         self.book.drop_stale(t)
         if t + 1e-9 >= self._next_log_t:
             self._next_log_t = t + 1.0 / self.params.log_rate_hz
@@ -329,6 +349,27 @@ class RelnavAid(NavigationAid):
             diag.id_correct = {p: self.bearing_id_ok.get(p, nan2)[0] for p in diag.table}
             diag.id_ambiguous = {p: self.bearing_id_ok.get(p, nan2)[1] for p in diag.table}
         return diag
+
+    def _plausible_size(self, dets: list, cam: Any, t: float) -> list:
+        """The detections whose box could be a neighbour's (see target_extent_m).
+
+        No neighbour is nearer than the shortest UWB range of the last report_max_age_s, so
+        none images larger than f x extent / (range cos^2 theta) pixels: a pinhole stretches
+        an object theta off the optical axis by 1 / cos theta across and 1 / cos^2 theta
+        along the radius (a 120 deg lens: 4x at its edge; barrel distortion only shrinks it).
+        Without a recent range nothing is dropped."""
+        extent = self.params.target_extent_m
+        if extent is None or not dets:
+            return dets
+        nearest_m = self.book.nearest_range_m(t, self.params.report_max_age_s)
+        if nearest_m is None:
+            return dets
+        m_xy = undistort_normalized(cam, [d.centre_px for d in dets])
+        cos2 = 1.0 / (1.0 + np.einsum("ij,ij->i", m_xy, m_xy))
+        limit_px = self.params.box_size_factor * max(cam.fx, cam.fy) * extent / (nearest_m * cos2) + self.params.box_slack_px
+        keep = [d for d, lim in zip(dets, limit_px) if max(d.width_px, d.height_px) <= lim]
+        self.counters["detections_oversize"] += len(dets) - len(keep)
+        return keep
 
     def _with_led_level(self, det, part) -> "Detection":
         """The detection with led_level read by the LED reader inside its box (+3 px)."""

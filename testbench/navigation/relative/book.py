@@ -76,6 +76,11 @@ class NeighbourBook:
             # lever arms cancel (lever_diff = R_nb (l_peer - l_self) = 0).
             f.update_range(m.t_s, m.range_m, np.zeros(3), est.vel_ned_mps)
 
+    def nearest_range_m(self, t: float, max_age_s: float) -> float | None:
+        """The shortest UWB range (m) of any peer measured within max_age_s before t, or None."""
+        recent = [rg for hist in self.last_range.values() for (tr, rg) in hist if t - tr <= max_age_s]
+        return min(recent) if recent else None
+
     # -- bearings --------------------------------------------------------------------------
 
     def filter_for_bearing(self, peer: str, track: Any, bearing: Bearing, cam: Any, mount: Any, R_nb: np.ndarray,

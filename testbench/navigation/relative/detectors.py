@@ -51,6 +51,7 @@ class LedDetector(Detector):
     """
 
     centre_reference = "led_centroid"
+    box_shows_extent = False
 
     class Params(ParamsModel):
         v_min: int = pydantic.Field(225, ge=0, le=255)

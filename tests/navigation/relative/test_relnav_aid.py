@@ -206,3 +206,46 @@ def test_a_restart_further_than_the_neighbour_can_have_moved_is_refused():
     assert aid.book.recently_forgotten("n", 1.0 + aid.params.forgotten_max_age_s + 0.1) is None
     moved = NeighbourFilter(13.0, (100.0, 60.0, 0.0), np.eye(3))  # 60 m in 12 s: possible
     assert aid.assoc.within_reach(old, moved, 13.0) and not aid.assoc.within_reach(old, far, 13.0)
+
+
+def test_a_box_too_large_for_any_neighbour_is_dropped_before_tracking():
+    """target_extent_m: with the nearest UWB range 100 m a 0.55 m quad makes ~3 px at the image
+    centre of a 1920 px 120 deg camera (f 554 px) and 4x that at 60 deg off axis; the CNN's
+    occasional 100+ px box around distant vehicles is no neighbour. Kept: boxes within 3x + 4 px
+    of that size; without a recent range, or without target_extent_m, nothing is dropped."""
+    from testbench.core.camera_geometry import CameraMount, PinholeCamera, mount_rotation
+    from testbench.core.interfaces import BuildContext
+    from testbench.core.messages import UwbRange
+    from testbench.navigation.relative.aid import RelnavAid
+    from testbench.navigation.relative.bench import ORIGIN, _Camera, _estimate, _Uwb
+    from testbench.navigation.relative.types import Detection
+
+    cam = PinholeCamera.from_hfov(1920, 1080, 120.0)
+    sensors = {"front": _Camera(cam, CameraMount(mount_rotation(0.0, 0.0, 0.0), np.zeros(3))), "uwb": _Uwb()}
+
+    def aid_with(**params):
+        return RelnavAid(RelnavAid.Params(cameras=["front"], detector={"type": "oracle"}, **params),
+                         ctx=BuildContext("self", ("self", "n0", "n1"), ORIGIN), sensors=sensors, rng=np.random.default_rng(0))
+
+    def box(u, v, w, h):
+        return Detection((u - w / 2, v - h / 2, u + w / 2, v + h / 2), (u, v), 0.9)
+
+    centre_ok, centre_big = box(960, 540, 12.0, 3.0), box(960, 540, 120.0, 40.0)  # limit 3 * 3.05 + 4 = 13.2 px
+    edge_ok = box(60, 540, 30.0, 6.0)  # 58 deg off axis: a quad there makes ~11 px, limit 37 px
+    dets = [centre_ok, centre_big, edge_ok]
+    aid = aid_with(target_extent_m=0.55)
+    assert aid._plausible_size(dets, cam, 1.0) == dets  # no range yet: nothing to judge by
+    est = _estimate(0.0, np.zeros(3), np.random.default_rng(0), 0.0)
+    aid.process(UwbRange(0.95, "n0", 100.0, -80.0), est)
+    aid.process(UwbRange(0.97, "n1", 180.0, -80.0), est)
+    assert aid._plausible_size(dets, cam, 1.0) == [centre_ok, edge_ok]
+    assert aid.counters["detections_oversize"] == 1
+    assert aid._plausible_size([box(960, 540, 14.0, 3.0)], cam, 1.0) == []  # just over the limit at 100 m
+    assert aid._plausible_size(dets, cam, 5.0) == dets  # the ranges are 4 s old
+    assert aid_with()._plausible_size(dets, cam, 1.0) == dets  # no target extent: no check
+    # An LED detector's box is the LEDs' glow, whatever the range: the check is refused.
+    from testbench.core.errors import InputError
+
+    with pytest.raises(InputError, match="target_extent_m"):
+        RelnavAid(RelnavAid.Params(cameras=["front"], detector={"type": "led"}, target_extent_m=0.55),
+                  ctx=BuildContext("self", ("self", "n0"), ORIGIN), sensors=sensors)
