@@ -26,13 +26,14 @@ from testbench.core.registry import ParamsModel, build, register
 from testbench.core.rotations import quat_to_dcm, rotvec_to_quat
 from testbench.navigation.relative.association import AssociationRules, Bearing
 from testbench.navigation.relative.book import NeighbourBook, StartRules
+from testbench.navigation.relative.box_size import small_enough
 from testbench.navigation.relative.detectors import LedDetector
 from testbench.navigation.relative.diagnostics import RelnavDiagnostics, id_truth
 from testbench.navigation.relative.frames import camera_model, frame_camera_name, frame_parts, is_camera_frame
-from testbench.navigation.relative.geometry import project_relative, undistort_normalized
+from testbench.navigation.relative.geometry import undistort_normalized
 from testbench.navigation.relative.layout import LayoutParams
 from testbench.navigation.relative.neighbour_filter import FilterSettings, constant_velocity_F
-from testbench.navigation.relative.regions import detect_regions, merge_rois, roi_around
+from testbench.navigation.relative.regions import detect_regions, rois_around_tracks
 from testbench.navigation.relative.tracking import Tracker, TrackerSettings
 from testbench.navigation.relative.types import Detection, NeighbourTable, RelativeEstimate
 
@@ -351,23 +352,13 @@ class RelnavAid(NavigationAid):
         return diag
 
     def _plausible_size(self, dets: list, cam: Any, t: float) -> list:
-        """The detections whose box could be a neighbour's (see target_extent_m).
-
-        No neighbour is nearer than the shortest UWB range of the last report_max_age_s, so
-        none images larger than f x extent / (range cos^2 theta) pixels: a pinhole stretches
-        an object theta off the optical axis by 1 / cos theta across and 1 / cos^2 theta
-        along the radius (a 120 deg lens: 4x at its edge; barrel distortion only shrinks it).
-        Without a recent range nothing is dropped."""
+        """The detections whose box could be a neighbour's at the shortest UWB range of the last
+        report_max_age_s (box_size.py; target_extent_m); all of them without such a range."""
         extent = self.params.target_extent_m
-        if extent is None or not dets:
-            return dets
-        nearest_m = self.book.nearest_range_m(t, self.params.report_max_age_s)
+        nearest_m = self.book.nearest_range_m(t, self.params.report_max_age_s) if extent is not None and dets else None
         if nearest_m is None:
             return dets
-        m_xy = undistort_normalized(cam, [d.centre_px for d in dets])
-        cos2 = 1.0 / (1.0 + np.einsum("ij,ij->i", m_xy, m_xy))
-        limit_px = self.params.box_size_factor * max(cam.fx, cam.fy) * extent / (nearest_m * cos2) + self.params.box_slack_px
-        keep = [d for d, lim in zip(dets, limit_px) if max(d.width_px, d.height_px) <= lim]
+        keep = small_enough(dets, cam, nearest_m, extent, self.params.box_size_factor, self.params.box_slack_px)
         self.counters["detections_oversize"] += len(dets) - len(keep)
         return keep
 
@@ -397,28 +388,12 @@ class RelnavAid(NavigationAid):
         return R_nb
 
     def _track_rois(self, name: str, t: float) -> list:
+        """Merged regions of camera `name` at t around its predicted tracks and the projected
+        neighbour estimates (regions.rois_around_tracks)."""
         cam, mount = self.cams[name]
         rp = self.params.roi
-        rois = []
-        R_nb = self._attitude_at(t)
-        R_nc = None if R_nb is None else R_nb @ mount.R_bc
-        for tr in self.trackers[name].tracks:
-            r = roi_around(tr.box_at(t, R_nc, cam.K), rp.margin_px + rp.margin_per_miss_px * tr.misses, cam.width_px, cam.height_px,
-                           rp.min_size_px)
-            if r is not None:
-                rois.append(r)
-        # Neighbours known from other cameras or from before: look where they should appear.
-        if R_nb is not None and self.filters:
-            for f in self.filters.values():
-                x = f.x[:3] + (t - f.t_s) * f.x[3:]
-                uv, z = project_relative(cam, mount, R_nb, x[None, :])
-                if z[0] <= 0:
-                    continue
-                half = 3.0 * np.sqrt(max(np.trace(f.P[:3, :3]), 1.0)) * cam.fx / max(z[0], 1.0)
-                r = roi_around((uv[0, 0], uv[0, 1], uv[0, 0], uv[0, 1]), rp.margin_px + half, cam.width_px, cam.height_px, rp.min_size_px)
-                if r is not None:
-                    rois.append(r)
-        return merge_rois(rois)
+        return rois_around_tracks(self.trackers[name].tracks, self.filters.values(), cam, mount, self._attitude_at(t), t,
+                                  rp.margin_px, rp.margin_per_miss_px, rp.min_size_px)
 
     # -- for the engine and the controller -------------------------------------------------
 

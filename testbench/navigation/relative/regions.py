@@ -11,6 +11,7 @@ from typing import Any, Iterable, Sequence
 
 import numpy as np
 
+from testbench.navigation.relative.geometry import project_relative
 from testbench.navigation.relative.types import Detection
 
 Roi = tuple[int, int, int, int]
@@ -59,6 +60,36 @@ def merge_rois(rois: Iterable[Roi]) -> list[Roi]:
             if changed:
                 break
     return sorted(out)
+
+
+def rois_around_tracks(tracks: Iterable[Any], estimates: Iterable[Any], camera: Any, mount: Any,
+                       R_nb: np.ndarray | None, t_s: float, margin_px: float, margin_per_miss_px: float,
+                       min_size_px: int) -> list[Roi]:
+    """Merged regions of one camera at t_s: around each image track's predicted box (margin
+    growing by margin_per_miss_px per missed frame) and, with the own attitude R_nb (3, 3,
+    body -> NED; None: unknown, tracks only), around each neighbour estimate projected into
+    the camera (NeighbourFilter: relative position x[:3] m NED carried by its velocity x[3:]
+    to t_s; half-size 3 sigma of its position at its depth), so that a neighbour known from
+    another camera or from before is looked for where it should appear."""
+    rois = []
+    R_nc = None if R_nb is None else R_nb @ mount.R_bc
+    for tr in tracks:
+        r = roi_around(tr.box_at(t_s, R_nc, camera.K), margin_px + margin_per_miss_px * tr.misses,
+                       camera.width_px, camera.height_px, min_size_px)
+        if r is not None:
+            rois.append(r)
+    if R_nb is not None:
+        for f in estimates:
+            x = f.x[:3] + (t_s - f.t_s) * f.x[3:]
+            uv, z = project_relative(camera, mount, R_nb, x[None, :])
+            if z[0] <= 0:
+                continue
+            half = 3.0 * np.sqrt(max(np.trace(f.P[:3, :3]), 1.0)) * camera.fx / max(z[0], 1.0)
+            r = roi_around((uv[0, 0], uv[0, 1], uv[0, 0], uv[0, 1]), margin_px + half, camera.width_px,
+                           camera.height_px, min_size_px)
+            if r is not None:
+                rois.append(r)
+    return merge_rois(rois)
 
 
 def crop(image: np.ndarray, roi: Roi, origin_uv: tuple[int, int] = (0, 0)) -> np.ndarray:
