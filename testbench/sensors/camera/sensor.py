@@ -189,7 +189,9 @@ class CameraSensor(Sensor):
         n_px = sum(p.valid.size for p in parts)
         offmap = sum(p.offmap_fraction * p.valid.size for p in parts) / max(n_px, 1)
         if offmap > 0.5 and not self._warned_offmap:
-            log.warning("camera %s at t=%.1f s: %.0f %% of the view is off the map (no-data)", self.name, truth.t_s, 100 * offmap)
+            log.warning("camera %s at t=%.1f s: %.0f %% of the view is off the map (no-data, drawn black; a camera far_m "
+                        "short of the map's edge draws haze and sky there instead, or use a larger map)",
+                        self.name, truth.t_s, 100 * offmap)
             self._warned_offmap = True
         return CameraFrame(truth.t_s, self.name, None if whole is None else whole.image, tuple(parts), truths, offmap,
                            self.camera, self.mount)
