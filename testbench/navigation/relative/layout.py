@@ -19,6 +19,12 @@ estimate of uav9 200 m off). `course_from: velocity` takes the estimated ground 
 `min_speed_mps`, else the yaw (for a fixed wing crabbing in wind). The follower's course still
 differs from the formation's while it turns, so the check allows `course_allowance_deg` of
 rotation (a distance-proportional margin) on top of `tolerance_m` for slot errors.
+The formation's `leader` takes its ground course whatever course_from says: the formation's
+course is the leader's ground track by definition, and a multirotor leader flying waypoints
+keeps its nose where it was (swarm_cnn, 295 s: the leader's nose at 0.5 deg, its course 62 deg;
+turned by its nose, the layout put uav1's slot where uav2 flew, the arrowhead being symmetric
+under 60 deg turns, and let a track of uav2 decoded as uav1 start the leader's estimate of uav1
+100 m off).
 Nothing here reads another vehicle's state: the slots are mission data, the course our own.
 """
 
@@ -40,9 +46,12 @@ class LayoutParams(ParamsModel):
     relative position (horizontal) and still start an estimate; course_allowance_deg: rotation
     of the layout allowed on top (margin = tolerance_m + sin(allowance) x slot distance);
     course_from: the own course the layout is turned by, "yaw" or "velocity" (module
-    docstring); min_speed_mps: with "velocity", below this ground speed the yaw is taken."""
+    docstring); min_speed_mps: with "velocity", below this ground speed the yaw is taken;
+    leader: the formation's leader, whose layout is turned by its ground course (as with
+    "velocity") whatever course_from says (None: no such vehicle)."""
 
     slots: dict[str, tuple[float, float, float]]
+    leader: str | None = None
     tolerance_m: float = pydantic.Field(40.0, gt=0)
     course_allowance_deg: float = pydantic.Field(10.0, ge=0, le=90)
     course_from: Literal["yaw", "velocity"] = "yaw"
@@ -71,7 +80,8 @@ def start_fits_layout(p: LayoutParams, self_id: str, peer_id: str, r_ned_m, vel_
     """Whether a neighbour estimate may start at relative position r_ned_m (3,) NED m: its
     horizontal distance from the slot-predicted position within tolerance_m + sin(allowance)
     x slot distance. True when the layout does not name both vehicles."""
-    course = float(yaw_rad) if p.course_from == "yaw" else own_course_rad(vel_ned_mps, yaw_rad, p.min_speed_mps)
+    by_yaw = p.course_from == "yaw" and self_id != p.leader
+    course = float(yaw_rad) if by_yaw else own_course_rad(vel_ned_mps, yaw_rad, p.min_speed_mps)
     exp = expected_relative_ned_m(p, self_id, peer_id, course)
     if exp is None:
         return True

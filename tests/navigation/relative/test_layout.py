@@ -51,3 +51,23 @@ def test_the_layout_turns_with_the_nose_not_with_a_sideways_slide():
     assert start_fits_layout(LayoutParams(slots=slots), "uav7", "uav2", uav2_where, vel, math.radians(0.2))
     assert start_fits_layout(LayoutParams(slots=slots, course_from="velocity"), "uav7", "uav9", uav2_where, vel,
                              math.radians(0.2))
+
+
+def test_the_leader_turns_its_layout_by_its_ground_course():
+    """swarm_cnn, the leader at 295 s: nose 0.5 deg (a multirotor flying waypoints keeps it),
+    ground course 62 deg. Turned by the nose, the layout put uav1's slot where uav2 flew (the
+    arrowhead is symmetric under 60 deg turns) and passed a track of uav2 decoded as uav1; the
+    leader's layout turns by its ground course, whatever course_from says."""
+    slots = {"uav0": (0.0, 0.0, 0.0), "uav1": (-86.603, -50.0, 0.0), "uav2": (-86.603, 50.0, 0.0)}
+    course = math.radians(62.0)
+    vel = 4.0 * np.array([math.cos(course), math.sin(course), 0.0])
+    p = LayoutParams(slots=slots)
+    uav2_where = expected_relative_ned_m(p, "uav0", "uav2", course)
+    uav1_where = expected_relative_ned_m(p, "uav0", "uav1", course)
+    nose = math.radians(0.5)
+    assert start_fits_layout(p, "uav0", "uav1", uav2_where, vel, nose)  # no leader named: by the nose
+    led = LayoutParams(slots=slots, leader="uav0")
+    assert not start_fits_layout(led, "uav0", "uav1", uav2_where, vel, nose)
+    assert start_fits_layout(led, "uav0", "uav1", uav1_where, vel, nose)
+    # A follower of that layout still turns it by its nose.
+    assert start_fits_layout(led, "uav1", "uav0", -expected_relative_ned_m(p, "uav0", "uav1", 0.0), vel, 0.0)
