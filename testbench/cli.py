@@ -17,7 +17,7 @@ from testbench import __version__
 from testbench.core.errors import EXIT_INTERNAL, InputError, TestbenchError
 
 # One module per subcommand family (testbench/commands/<name>.py with register(subparsers)).
-COMMAND_MODULES = ("run", "report", "make_map", "aircraft", "sensors", "locate", "ismn", "montecarlo", "bench", "detector")
+COMMAND_MODULES = ("run", "report", "make_map", "aircraft", "sensors", "locate", "ismn", "montecarlo", "compare", "bench", "detector")
 
 
 def build_parser() -> argparse.ArgumentParser:
