@@ -83,8 +83,9 @@ class MetricChange:
         return {k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in asdict(self).items()}
 
 
-def _verdict(key: str, delta: float, significant: bool) -> str:
-    if not significant or delta == 0.0:
+def _verdict(key: str, delta: float, counts: bool) -> str:
+    """better / worse / changed for a change that counts, else same."""
+    if not counts or delta == 0.0:
         return "same"
     d = direction(key)
     if d == 0:
@@ -140,15 +141,24 @@ def compare_runs(base: Mapping[str, object], new: Mapping[str, object], rel_tol:
             out.append(MetricChange(k, b, x, math.nan, math.nan, math.nan, 1, verdict, is_timing(k)))
             continue
         delta = x - b
-        significant = abs(delta) > rel_tol * abs(b) if b != 0 else delta != 0
-        out.append(MetricChange(k, b, x, delta, _rel(b, delta), math.nan, 1, _verdict(k, delta, significant), is_timing(k)))
+        counts = abs(delta) > rel_tol * abs(b) if b != 0 else delta != 0
+        out.append(MetricChange(k, b, x, delta, _rel(b, delta), math.nan, 1, _verdict(k, delta, counts), is_timing(k)))
     return out
+
+
+def _identity_columns(runs: pd.DataFrame) -> list[str]:
+    """The columns that say which run a row is: its number, seed and varied values."""
+    return [c for c in runs.columns if c == "run" or c.startswith(("seed", "vary."))]
+
+
+def _numeric_columns(runs: pd.DataFrame) -> set[str]:
+    return {c for c in runs.columns if pd.api.types.is_numeric_dtype(runs[c])}
 
 
 def runs_are_paired(base: pd.DataFrame, new: pd.DataFrame) -> bool:
     """True when both batches flew the same runs: same run numbers, seeds and varied values."""
-    ident = [c for c in base.columns if c == "run" or c.startswith(("seed", "vary."))]
-    if "run" not in ident or set(ident) != {c for c in new.columns if c == "run" or c.startswith(("seed", "vary."))}:
+    ident = _identity_columns(base)
+    if "run" not in ident or set(ident) != set(_identity_columns(new)):
         return False
     a = base[ident].sort_values("run").reset_index(drop=True)
     b = new[ident].sort_values("run").reset_index(drop=True)
@@ -170,9 +180,8 @@ def compare_batches(base: pd.DataFrame, new: pd.DataFrame, alpha: float = 0.05, 
     paired = runs_are_paired(base, new)
     if paired:
         base, new = base.sort_values("run").reset_index(drop=True), new.sort_values("run").reset_index(drop=True)
-    numeric = lambda df: {c for c in df.columns if pd.api.types.is_numeric_dtype(df[c])}  # noqa: E731
     out = []
-    for k in _select(numeric(base) | numeric(new), only, ignore):
+    for k in _select(_numeric_columns(base) | _numeric_columns(new), only, ignore):
         if k not in new:
             out.append(MetricChange(k, float(base[k].mean()), math.nan, math.nan, math.nan, math.nan, 0, "missing", is_timing(k)))
             continue
