@@ -75,6 +75,7 @@ def run(args: argparse.Namespace) -> int:
 
         changes, paired = cmp.compare_batches(pd.read_parquet(base / "runs.parquet"), pd.read_parquet(new / "runs.parquet"),
                                               args.alpha, args.rel_tol, args.only, ignore)
+        changes += cmp.compare_runs(_batch_figures(base), _batch_figures(new), args.rel_tol, args.only, ignore)
         test = "paired runs, Wilcoxon signed-rank" if paired else "unpaired runs, Mann-Whitney U"
         head = (f"batches: {base} -> {new} (means over runs; {test}; a change counts at p < {args.alpha} "
                 f"and above {args.rel_tol:.0%} of the base mean)")
@@ -97,6 +98,19 @@ def _flat_metrics(folder: Path) -> dict:
         return flatten(json.loads((folder / "metrics.json").read_text(encoding="utf-8")))
     except ValueError as exc:
         raise InputError(f"{folder / 'metrics.json'}: not valid JSON ({exc})") from None
+
+
+def _batch_figures(folder: Path) -> dict:
+    """The batch-level figures of summary.json (one number per batch, no test): its position
+    NEES consistency and threshold pass rate, as batch.<key>."""
+    from testbench.scoring.result import flatten
+
+    try:
+        summary = json.loads((folder / "summary.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    sections = {k: summary[k] for k in ("nees_position", "threshold_pass_rate") if isinstance(summary.get(k), dict)}
+    return flatten(sections, "batch.")
 
 
 def _print_table(changes) -> None:

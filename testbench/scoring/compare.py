@@ -30,13 +30,15 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-# Direction by the words of a dotted key; the first rule that matches wins. Consistency figures
-# (NEES, NIS, within-n-sigma shares) have a right value, not a better side; so do ambiguity
-# shares (the geometry's, not the estimator's) and sample counts.
+# Direction by the words of a dotted key; the first rule that matches wins. A run's consistency
+# figures (NEES, NIS, within-n-sigma shares) have a right value, not a better side; so do
+# ambiguity shares (the geometry's, not the estimator's) and sample counts. A batch's share of
+# time its average NEES stays inside the 95 % band (batch.nees_position.fraction_within) is
+# better higher: too cautious a filter falls below the band as surely as a confident one above.
 DIRECTION_RULES: tuple[tuple[str, int], ...] = (
     (".nees.", 0), (".nis.", 0), ("sigma", 0), ("ambiguous", 0),
     ("error", -1), ("latency", -1), ("miss", -1), ("overshoot", -1), ("wall_time", -1), ("_us", -1),
-    ("fix_rate", +1), ("correct_rate", +1), ("accept_rate", +1), ("pass_rate", +1),
+    ("fix_rate", +1), ("correct_rate", +1), ("accept_rate", +1), ("pass_rate", +1), ("fraction_within", +1),
     ("recall", +1), ("precision", +1), ("real_time_factor", +1),
 )
 NEUTRAL_LEAVES = {"n", "count", "dof"}

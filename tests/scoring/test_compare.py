@@ -122,13 +122,21 @@ def test_compare_command_on_runs(tmp_path, capsys):
 def test_compare_command_on_batches(tmp_path, capsys):
     rng = np.random.default_rng(5)
     per_run = rng.lognormal(0.0, 0.5, 12)
-    for name, vals in (("base", per_run), ("new", per_run * 1.1)):
+    for name, vals, within in (("base", per_run, 0.92), ("new", per_run * 1.1, 0.57)):
         (tmp_path / name).mkdir()
         _batch(vals).to_parquet(tmp_path / name / "runs.parquet")
         (tmp_path / name / "batch.json").write_text(json.dumps({"scenario": "scenarios/paper_ismn_800m.yaml"}))
-    assert main(["compare", str(tmp_path / "base"), str(tmp_path / "new")]) == 3
+        (tmp_path / name / "summary.json").write_text(json.dumps(
+            {"nees_position": {"fraction_within": within, "mean_of_average": 2.9, "dof": 3}, "metrics": {}}))
+    out_json = tmp_path / "cmp.json"
+    assert main(["compare", str(tmp_path / "base"), str(tmp_path / "new"), "--json", str(out_json)]) == 3
     out = capsys.readouterr().out
     assert "paired runs, Wilcoxon" in out and "worse" in out
+    rows = {r["key"]: r for r in json.loads(out_json.read_text())}
+    assert rows["nav.horizontal_error_m.mean"]["verdict"] == "worse" and rows["nav.horizontal_error_m.mean"]["n"] == 12
+    # The batch-level consistency figure, one number per batch: the share inside the NEES band fell.
+    assert rows["batch.nees_position.fraction_within"]["verdict"] == "worse"
+    assert rows["batch.nees_position.mean_of_average"]["verdict"] == "same"
 
 
 @pytest.mark.parametrize("args, message", [
