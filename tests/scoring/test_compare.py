@@ -28,6 +28,8 @@ from testbench.scoring.compare import compare_batches, compare_runs, direction, 
     ("nav.horizontal_error_m.n", 0),
     ("control.bank_max_deg", 0),
     ("nav.lost_at_s", 0),
+    ("batch.nees_position.fraction_within", +1),
+    ("batch.threshold_pass_rate.value", +1),
 ])
 def test_direction_from_the_key(key, expected):
     assert direction(key) == expected
