@@ -120,8 +120,9 @@ def _numeric(v) -> float | None:
 
 def compare_runs(base: Mapping[str, object], new: Mapping[str, object], rel_tol: float = 0.02,
                  only: Sequence[str] = (), ignore: Sequence[str] = ()) -> list[MetricChange]:
-    """Two runs' flattened metrics ({"nav.horizontal_error_m.mean": 0.55, ...}). A change
-    counts when |new - base| > rel_tol |base| (or, at base 0, when new differs at all)."""
+    """Two runs' flattened metrics ({"nav.horizontal_error_m.mean": 0.55, ...}), or any two
+    sets of single numbers (a batch's own figures). A change counts when |new - base| >
+    rel_tol |base| (or, at base 0, when new differs at all)."""
     out = []
     for k in _select(set(base) | set(new), only, ignore):
         b, x = _numeric(base.get(k)), _numeric(new.get(k))
