@@ -1,7 +1,7 @@
 """Comparing two runs or two batches: the direction of a metric from its name, a run's changes
 against the tolerance, a batch's paired and unpaired rank tests (a real shift is found, a
 reshuffle of the same scatter is not), and the `testbench compare` command end to end on run
-and batch folders, with its bad-input messages."""
+and batch folders, with its bad-input messages, and on real records of the racetrack."""
 
 import json
 import math
@@ -12,6 +12,7 @@ import pytest
 
 from testbench.cli import main
 from testbench.scoring.compare import compare_batches, compare_runs, direction, failed, runs_are_paired
+from testbench.sim.bench import SCENARIOS_DIR
 
 
 @pytest.mark.parametrize("key, expected", [
@@ -154,3 +155,22 @@ def test_compare_bad_input(tmp_path, capsys, args, message):
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert message in err and "Traceback" not in err
+
+
+def test_compare_real_runs_same_seed_and_a_changed_autopilot(tmp_path, capsys):
+    """End to end on real records: the same scenario and seed twice compare as the same (exit 0);
+    a tighter bank limit in the turns changes the flight and is reported."""
+    scenario = str(SCENARIOS_DIR / "fixedwing_racetrack.yaml")
+    common = ["--no-report", "--set", "duration_s=150"]
+    a, b, c = (str(tmp_path / n) for n in "abc")
+    assert main(["run", scenario, "--out", a, *common]) in (0, 3)
+    assert main(["run", scenario, "--out", b, *common]) in (0, 3)
+    assert main(["run", scenario, "--out", c, *common, "--set", "vehicles.uav0.control.params.max_bank_deg=20"]) in (0, 3)
+    capsys.readouterr()
+    assert main(["compare", a, b, "--all", "--ignore", "*wall_time_s", "--ignore", "real_time_factor"]) == 0
+    out = capsys.readouterr().out
+    assert " worse" not in out and " better" not in out and "same" in out
+    main(["compare", a, c, "--json", str(tmp_path / "ac.json")])
+    rows = {r["key"]: r for r in json.loads((tmp_path / "ac.json").read_text())}
+    assert rows["control.bank_max_deg"]["new"] < rows["control.bank_max_deg"]["base"]
+    assert rows["control.bank_max_deg"]["verdict"] == "changed"
