@@ -195,15 +195,15 @@ def compare_batches(base: pd.DataFrame, new: pd.DataFrame, alpha: float = 0.05, 
         if paired:
             ok = np.isfinite(b) & np.isfinite(x)
             b, x = b[ok], x[ok]
-            d = x - b
-            n = int(ok.sum())
-            p = _wilcoxon_p(d)
         else:
             b, x = b[np.isfinite(b)], x[np.isfinite(x)]
-            n = int(min(b.size, x.size))
-            p = float(stats.mannwhitneyu(x, b, alternative="two-sided").pvalue) if n >= 1 and np.ptp(np.r_[b, x]) > 0 else 1.0
         if b.size == 0 or x.size == 0:
             continue
+        if paired:
+            n, p = b.size, _wilcoxon_p(x - b)
+        else:
+            n = min(b.size, x.size)
+            p = float(stats.mannwhitneyu(x, b, alternative="two-sided").pvalue) if np.ptp(np.r_[b, x]) > 0 else 1.0
         mb, mx = float(np.mean(b)), float(np.mean(x))
         delta = mx - mb
         matters = abs(delta) > rel_tol * abs(mb) if mb != 0 else delta != 0
@@ -213,7 +213,7 @@ def compare_batches(base: pd.DataFrame, new: pd.DataFrame, alpha: float = 0.05, 
 
 def _wilcoxon_p(d: np.ndarray) -> float:
     """Two-sided Wilcoxon signed-rank p-value of paired differences (1.0 when all are zero)."""
-    if d.size == 0 or not np.any(d != 0):
+    if not np.any(d != 0):
         return 1.0
     return float(stats.wilcoxon(d, zero_method="wilcox", alternative="two-sided").pvalue)
 
