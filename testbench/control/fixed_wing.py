@@ -25,6 +25,7 @@ from operator import mul
 import numpy as np
 import pydantic
 
+from testbench.control.deferred_status import DeferredStatus
 from testbench.control.gains import FixedWingGains, default_gains
 from testbench.control.guidance import PathFollower
 from testbench.control.paths import LineSegment
@@ -52,7 +53,7 @@ def _floats(v) -> list[float]:
 
 
 @register("controller", "fixed_wing")
-class FixedWingController(Controller):
+class FixedWingController(DeferredStatus, Controller):
     """Guidance and autopilot of a fixed-wing aircraft (see the module docstring).
 
     Params: max_bank_deg (default: the sidecar's max_bank_deg, else 30); airspeed_mps (default:
@@ -109,8 +110,6 @@ class FixedWingController(Controller):
         self._int_v = 0.0
         self._int_h = 0.0
         self._int_phi = 0.0
-        self._status_inputs: tuple | None = None  # arguments of _guidance_status for the latest tick
-        self._status = GuidanceStatus(t_s=0.0)
 
     # -- helpers ---------------------------------------------------------------------------
 
@@ -136,7 +135,7 @@ class FixedWingController(Controller):
         out = self.follower.update_ne(p_n, p_e, v_n, v_e, lead_s=self._roll_lead_s, turn_rate_rps=turn_rate)
         h_cmd = self._alt_cmd_by_segment[out.segment_index]
         cmd = self.autopilot(t_s, estimate, out.bank_cmd_rad, h_cmd, self.airspeed_cmd_mps)
-        self._status_inputs = (t_s, out.segment_index, h_cmd, out.bank_cmd_rad, out.cross_track_m)
+        self._defer_status(t_s, out.segment_index, h_cmd, out.bank_cmd_rad, out.cross_track_m)
         return cmd
 
     def _guidance_status(self, t_s: float, seg_index: int, h_cmd: float, bank_cmd: float, cross_track: float) -> GuidanceStatus:
@@ -152,20 +151,6 @@ class FixedWingController(Controller):
             bank_cmd_rad=bank_cmd,
             cross_track_est_m=cross_track,
         )
-
-    # The status is built when asked for (the engine records it at the record rate, below the
-    # control rate); `_status` stays an attribute for subclasses that read or replace it.
-    @property
-    def _status(self) -> GuidanceStatus:
-        if self._status_inputs is not None:
-            self._status_value = self._guidance_status(*self._status_inputs)
-            self._status_inputs = None
-        return self._status_value
-
-    @_status.setter
-    def _status(self, value: GuidanceStatus) -> None:
-        self._status_value = value
-        self._status_inputs = None
 
     def autopilot(self, t_s: float, estimate: NavEstimate, phi_c: float, h_cmd: float, v_cmd: float) -> SurfaceCommand:
         """Inner loops: bank phi_c (rad), altitude h_cmd (m above origin), airspeed v_cmd (m/s)."""
@@ -215,6 +200,3 @@ class FixedWingController(Controller):
         r_c = G * sin_phi * math.cos(theta) / v_for_rates
         rudder = _clip(g.trim_rudder - g.k_r * (r - r_c), -1.0, 1.0)
         return SurfaceCommand(aileron=aileron, elevator=elevator, rudder=rudder, throttle=throttle)
-
-    def status(self) -> GuidanceStatus:
-        return self._status

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 import pydantic
 
+from testbench.control.deferred_status import DeferredStatus
 from testbench.control.mixer import Mixer
 from testbench.core.interfaces import BuildContext, Controller
 from testbench.core.messages import GuidanceStatus, NavEstimate, RotorCommand
@@ -104,7 +105,7 @@ def multirotor_gains(meta: dict, zeta_att: float = 0.85) -> MultirotorGains:
 
 
 @register("controller", "multirotor")
-class MultirotorController(Controller):
+class MultirotorController(DeferredStatus, Controller):
     """Waypoint guidance and cascaded control of a multirotor (see module docstring).
 
     Params: max_speed_mps (default: mission speed_mps, else sidecar cruise_airspeed_mps, else 5);
@@ -160,8 +161,6 @@ class MultirotorController(Controller):
         self._yaw_sp: float | None = None
         self._int_v = (0.0, 0.0, 0.0)
         self._t_prev: float | None = None
-        self._status_inputs: tuple | None = None  # arguments of _guidance_status for the latest tick
-        self._status = GuidanceStatus(t_s=0.0)
         # Plain-float copies of what the loops read every tick.
         self._waypoints_ned = [tuple(float(c) for c in w) for w in wps]
         self._inertia_diag = tuple(float(j) for j in np.diag(self.inertia))
@@ -278,8 +277,8 @@ class MultirotorController(Controller):
         thrust, rpy_d = self._thrust_and_attitude(accel_cmd, roll, pitch, yaw)
         moments = self._attitude_and_rate_loops(rpy_d, (roll, pitch, yaw), _floats(estimate.omega_b_rps))
         cmd = RotorCommand(motors=self.mixer.commands(thrust, moments))
-        self._status_inputs = (t_s, self.index, not self.holding, float(self._prev_pt[0]), float(self._prev_pt[1]),
-                               rpy_d[0], pos[0], pos[1])
+        self._defer_status(t_s, self.index, not self.holding, float(self._prev_pt[0]), float(self._prev_pt[1]),
+                          rpy_d[0], pos[0], pos[1])
         return cmd
 
     def _velocity_loop(self, v_cmd, vel_ned_mps: list[float], dt: float) -> tuple[float, float, float]:
@@ -348,23 +347,6 @@ class MultirotorController(Controller):
             bank_cmd_rad=bank_cmd,
             cross_track_est_m=_cross_track_m(p_n, p_e, prev_n, prev_e, target[0], target[1]),
         )
-
-    # The status is built when asked for (the engine records it at the record rate, below the
-    # control rate); `_status` stays an attribute for subclasses that read or replace it.
-    @property
-    def _status(self) -> GuidanceStatus:
-        if self._status_inputs is not None:
-            self._status_value = self._guidance_status(*self._status_inputs)
-            self._status_inputs = None
-        return self._status_value
-
-    @_status.setter
-    def _status(self, value: GuidanceStatus) -> None:
-        self._status_value = value
-        self._status_inputs = None
-
-    def status(self) -> GuidanceStatus:
-        return self._status
 
 
 def _cross_track_m(p_n: float, p_e: float, a_n: float, a_e: float, b_n: float, b_e: float) -> float:
