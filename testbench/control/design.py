@@ -27,7 +27,6 @@ the aircraft, trim point and date.
 from __future__ import annotations
 
 import datetime
-import math
 from dataclasses import asdict, dataclass
 
 import control

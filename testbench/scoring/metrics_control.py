@@ -98,7 +98,6 @@ def waypoint_errors(tel) -> tuple[np.ndarray, np.ndarray]:
         starts = np.flatnonzero(change)
         runs = [(s, e) for s, e in zip(starts, np.r_[starts[1:], len(tgt)])]
         for i, (s, e) in enumerate(runs):
-            rows = slice(s, e)
             if i + 1 >= len(runs):
                 break  # the last target is never left: not "reached then moved on"
             wp = tgt[s]

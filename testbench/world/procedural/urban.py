@@ -81,7 +81,6 @@ class Urban(Terrain):
 
     def rows(self, a, b):
         gsd, season = self.gsd_m, self.season
-        shape = (b - a, self.shape[1])
         east, north = self.coords(a, b)
         z = self.z_n.rows(a, b)
         z *= np.float32(3.0)
