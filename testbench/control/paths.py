@@ -49,8 +49,28 @@ def _ne_floats(v) -> tuple[float, float]:
     return float(v[0]), float(v[1])
 
 
+class _ArrayFace:
+    """The array face of a segment over its scalar one (locate_ne, closest_point_ne): p_ne is
+    any (2,) sequence (north, east) in metres."""
+
+    def locate(self, p_ne: np.ndarray) -> tuple[float, float]:
+        """(progress along the segment from its start (m), cross-track (m, right of the
+        direction of travel positive))."""
+        return self.locate_ne(*_ne_floats(p_ne))
+
+    def closest_point(self, p_ne: np.ndarray) -> np.ndarray:
+        """The segment's point nearest p_ne, (2,) NE metres."""
+        return np.array(self.closest_point_ne(*_ne_floats(p_ne)))
+
+    def distance_m(self, p_ne: np.ndarray) -> float:
+        """Distance (m) from p_ne to the segment."""
+        p_n, p_e = _ne_floats(p_ne)
+        q_n, q_e = self.closest_point_ne(p_n, p_e)
+        return math.hypot(p_n - q_n, p_e - q_e)
+
+
 @dataclass(frozen=True)
-class LineSegment:
+class LineSegment(_ArrayFace):
     """Straight segment from start_ne_m to end_ne_m (each (2,), metres)."""
 
     start_ne_m: np.ndarray
@@ -120,19 +140,7 @@ class LineSegment:
         s = along + math.sqrt(l1_m * l1_m - cross * cross)
         return (*self.point_at_ne(s), s)
 
-    # -- array face ----------------------------------------------------------------------
-
-    def locate(self, p_ne: np.ndarray) -> tuple[float, float]:
-        """(progress along the segment from its start (m), cross-track (m, right positive))."""
-        return self.locate_ne(*_ne_floats(p_ne))
-
-    def closest_point(self, p_ne: np.ndarray) -> np.ndarray:
-        return np.array(self.closest_point_ne(*_ne_floats(p_ne)))
-
-    def distance_m(self, p_ne: np.ndarray) -> float:
-        p_n, p_e = _ne_floats(p_ne)
-        q_n, q_e = self.closest_point_ne(p_n, p_e)
-        return math.hypot(p_n - q_n, p_e - q_e)
+    # -- array face (locate, closest_point, distance_m: _ArrayFace) ---------------------
 
     def l1_point(self, p_ne: np.ndarray, l1_m: float) -> tuple[np.ndarray, float] | None:
         """Forward intersection of the circle |x - p| = l1 with the (extended) line.
@@ -145,7 +153,7 @@ class LineSegment:
 
 
 @dataclass(frozen=True)
-class ArcSegment:
+class ArcSegment(_ArrayFace):
     """Circular arc about center_ne_m (2,) of radius_m, from bearing start_rad, sweeping
     sweep_rad (> 0, up to 2 pi for a full orbit) in `direction` (+1 cw / right, -1 ccw / left)."""
 
@@ -242,19 +250,7 @@ class ArcSegment:
         ang = math.atan2(d_e, d_n) + self.direction * alpha
         return (*self.point_at_bearing_ne(ang), self.radius_m * self._progress_angle(ang))
 
-    # -- array face ----------------------------------------------------------------------
-
-    def locate(self, p_ne: np.ndarray) -> tuple[float, float]:
-        """(progress along the arc (m), cross-track (m, right of the direction of travel +))."""
-        return self.locate_ne(*_ne_floats(p_ne))
-
-    def closest_point(self, p_ne: np.ndarray) -> np.ndarray:
-        return np.array(self.closest_point_ne(*_ne_floats(p_ne)))
-
-    def distance_m(self, p_ne: np.ndarray) -> float:
-        p_n, p_e = _ne_floats(p_ne)
-        q_n, q_e = self.closest_point_ne(p_n, p_e)
-        return math.hypot(p_n - q_n, p_e - q_e)
+    # -- array face (locate, closest_point, distance_m: _ArrayFace) ---------------------
 
     def l1_point(self, p_ne: np.ndarray, l1_m: float) -> tuple[np.ndarray, float] | None:
         """Forward intersection of |x - p| = l1 with the (full) circle of the arc.
