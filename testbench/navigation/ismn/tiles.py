@@ -133,6 +133,12 @@ def refine_tiles(pyr_o, pyr_m, origin0, offset0, radius0_px: float, tiles, T0: i
                 break
             res = cv2.matchTemplate(region, tmpl, cv2.TM_CCOEFF_NORMED)
             _, ncc, _, (px, py) = cv2.minMaxLoc(res)
+            if not (0 < px < res.shape[1] - 1 and 0 < py < res.shape[0] - 1):
+                # The best score on the search box's edge: the true peak lies outside it (the
+                # tile is displaced farther than its search allows, e.g. by an unmodelled
+                # heading error), and the edge value is no measurement of where.
+                ncc = -1.0
+                break
             sx, sy = subpixel_peak(res, px, py)
             off = np.array([(mx + sx - tx) * s - origin0[0], (my + sy - ty) * s - origin0[1]])
             if lev == 0:
