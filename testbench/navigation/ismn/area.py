@@ -109,10 +109,11 @@ class AreaMatcherBase(SceneMatcher):
         # depends on which tiles it averages: moving the prior by a tenth of a pixel can move
         # the tile grid on the ground by a pixel and the fix by 0.3-0.4 m (paper_ismn_800m
         # frames, 24 tiles of 96 px: the fix's SD over one pixel of prior shift 0.17-0.20 m, as
-        # much as half its error variance). More, smaller tiles average that down at the same
-        # cost: 48 of 64 px against 24 of 96 px, 600 s runs: ISMN smooth mean 0.55 -> 0.46 m
-        # (paper), 0.28 -> 0.17 m (lowalt), and 1.76 -> 1.54 m against 30 of 96 px (naip); 72
-        # of 64 px gained another 10 % for 50 % more latency.
+        # much as half its error variance). More, smaller tiles average that down: 48 of 64 px
+        # against 24 of 96 px, 600 s runs: ISMN smooth mean 0.55 -> 0.46 m (paper), 0.28 ->
+        # 0.18 m (lowalt), and 1.76 -> 1.52 m against 30 of 96 px (naip), for a latency p95 of
+        # 39-41 ms instead of 29-34 ms on one core; 72 of 64 px gained another 10 % for 50 %
+        # more latency.
         tiles_x: int = 12
         tiles_y: int = 7
         max_tiles: int = 48
