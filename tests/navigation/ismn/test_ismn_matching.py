@@ -87,3 +87,24 @@ def test_heading_uncertainty_widens_the_tile_search(seasons):
     blind = NccMatcher().match(o, m, MatchPrior((x0, y0), 20.0))
     n_blind = 0 if blind is None or blind.ortho_px is None else len(blind.ortho_px)
     assert n_blind <= 8 and (blind is None or blind.quality < 0.5)
+
+
+def test_a_tile_displaced_beyond_its_search_is_dropped_not_clipped(seasons):
+    """A tile whose true offset lies outside its search box peaks on the box's edge: that is no
+    measurement, and the tile is dropped (kept, it would report the edge as its offset). The
+    same tiles with a search wide enough recover the offset."""
+    from testbench.navigation.ismn.area import as_u8, pyramid
+    from testbench.navigation.ismn.tiles import refine_tiles
+
+    m = as_u8(seasons[1].data[:600, :700, 0])
+    o = as_u8(_shifted_crop(seasons[0].data[:600, :700, 0], 60, 70, 400, 300, 9.0, -7.0))
+    pyr_o = pyramid(o, np.ones(o.shape, bool), 0)
+    pyr_m = pyramid(m, np.ones(m.shape, bool), 0)
+    tiles = [(x, y) for x in (40, 160, 280) for y in (40, 160)]
+    wide = refine_tiles(pyr_o, pyr_m, (60, 70), (0.0, 0.0), 12.0, tiles, 64, "gradmag", 0.15)
+    assert len(wide.ortho_px) >= 5
+    np.testing.assert_allclose(wide.map_px - wide.ortho_px - [60, 70], np.tile([9.0, -7.0], (len(wide.ortho_px), 1)), atol=0.5)
+    # Searched to 8 px: the 9 px offset is one pixel beyond; the edge column still scores an NCC
+    # of about 0.5 (that is what the tiles reported at 8.0 px before they were dropped).
+    narrow = refine_tiles(pyr_o, pyr_m, (60, 70), (0.0, 0.0), 7.0, tiles, 64, "gradmag", 0.15)
+    assert len(narrow.ortho_px) == 0
