@@ -18,6 +18,7 @@ def _run_frames_args(parser, step_s: float) -> None:
     parser.add_argument("--step", type=float, default=step_s, help="frame spacing, s (a multiple of the 0.1 s record)")
     parser.add_argument("--pipeline", help="pipeline params to override, JSON (e.g. '{\"n_sigma\": 3}')")
     parser.add_argument("--frames-dir", help="cache of rendered frames (grey PNG; rendering costs more than matching)")
+    parser.add_argument("--matcher", help="matcher params to override, JSON (e.g. '{\"tiles_x\": 9}')")
 
 
 def register(subparsers) -> None:
@@ -26,7 +27,6 @@ def register(subparsers) -> None:
     r = sub.add_parser("replay", help="render a run's camera at its true poses, match with its recorded estimates, "
                                       "score each fix against truth (open loop)")
     _run_frames_args(r, 0.5)
-    r.add_argument("--matcher", help="matcher params to override, JSON (e.g. '{\"tiles_x\": 9}')")
     r.add_argument("--matcher-type", help="matcher type to use instead of the scenario's (ncc, orb, sift)")
     r.add_argument("--save-bad", type=float, default=5.0, help="save frames whose fix errs by more than this, m")
     r.add_argument("--save-dir", help="where --save-bad frames go (.npz: ortho, map window)")
@@ -43,6 +43,10 @@ def register(subparsers) -> None:
     s.add_argument("--tilt-mrad", type=float, default=1.0, help="attitude step of the central differences, mrad")
     s.add_argument("--shift-m", type=float, default=0.3,
                    help="position step, m (well under the working ground sample: a whole pixel changes nothing)")
+    s.add_argument("--sweep-steps", type=int, default=0,
+                   help="also sweep the prior over --sweep-m in this many steps: the fix's spread and jumps (0: off)")
+    s.add_argument("--sweep-m", type=float, default=1.5,
+                   help="length of the sweep, m (about one working ground sample: paper_ismn_800m works at 1.54 m)")
     s.set_defaults(handler=_sensitivity)
 
 
@@ -63,6 +67,8 @@ def _sensitivity(args) -> int:
 
     if not (args.tilt_mrad > 0 and args.shift_m > 0):
         raise InputError(f"--tilt-mrad and --shift-m must be > 0 (got {args.tilt_mrad}, {args.shift_m})")
+    if args.sweep_steps < 0 or (args.sweep_steps and not args.sweep_m > 0):
+        raise InputError(f"--sweep-steps must be >= 0 and --sweep-m > 0 (got {args.sweep_steps}, {args.sweep_m})")
     summary = run(args)
     # One line per key (a matrix row-major on its line): valid JSON that reads as a table.
     print("{\n" + ",\n".join(f" {json.dumps(k)}: {json.dumps(v)}" for k, v in summary.items()) + "\n}")

@@ -18,17 +18,30 @@ and takes central differences of the fix:
   --shift-m well under the working ground sample (default 0.3 m, a fifth of 1.5 m).
 
     testbench ismn sensitivity scenarios/paper_ismn_800m.yaml RUN_DIR --t0 40 --t1 50 --step 1 \
-        [--tilt-mrad 1 --shift-m 0.3] [--pipeline '{"n_sigma": 3}'] [--frames-dir /tmp/frames]
+        [--tilt-mrad 1 --shift-m 0.3] [--sweep-steps 16 --sweep-m 1.5] [--pipeline '{"n_sigma": 3}']
+        [--matcher '{"max_tiles": 24}'] [--frames-dir /tmp/frames]
 
 Output (JSON): per quantity the mean and standard deviation over frames of the measured
 Jacobian d fix (N, E, D, m) / d prior (tilt N, tilt E, heading: m/rad; north, east: m/m), the
 mean declared M (m/rad) and the excess (measured - declared). The standard deviation holds the
 matcher's re-matching noise divided by twice the step: it shrinks with larger steps, the mean
 does not.
+
+A central difference cannot tell a smooth lean on the prior from a jump: moving the prior by a
+fraction of a pixel can move the grid the tiles are cut on by a whole pixel, so that other
+tiles are averaged and the fix jumps (measured on paper_ismn_800m frames: up to 0.3-0.4 m for
+0.1 m of prior shift; a resampled sub-pixel peak did not change it, so it is not the parabola's
+peak locking). `--sweep-steps N` therefore also moves the prior along a line 20 deg east of
+north over `--sweep-m` (about one working pixel) in N steps and reports, over frames, the RMS
+of the fix's standard deviation along the sweep (north, east), the median of its largest jump
+between neighbouring steps (horizontal), and the RMS fix error at the unmoved prior. An ideal
+matcher has no spread: what the sweep shows is error that depends on where the prior places the
+grid, and averages down with more tiles.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -79,6 +92,49 @@ def frame_sensitivity(pipe, image: np.ndarray, t_s: float, estimate: NavEstimate
     return FrameSensitivity(t_s, J, np.array(fix0.att_sensitivity_m_per_rad, float))
 
 
+#: The sweep's direction (north, east): 20 deg east of north, so that both grid axes change phase.
+SWEEP_DIRECTION_NE = (math.cos(math.radians(20.0)), math.sin(math.radians(20.0)))
+
+
+@dataclass(frozen=True)
+class FrameSweep:
+    """One frame: t_s; fix_error_ned_m (steps, 3): fix minus truth with the prior moved by
+    k * span_m / steps along SWEEP_DIRECTION_NE (k = 0 .. steps - 1; k = 0 is the unmoved prior)."""
+
+    t_s: float
+    fix_error_ned_m: np.ndarray
+
+
+def frame_sweep(pipe, image: np.ndarray, t_s: float, estimate: NavEstimate, true_pos_ned_m: np.ndarray,
+                span_m: float, steps: int) -> FrameSweep | None:
+    """The fix's error as the prior moves over span_m in `steps` steps (None: some fix failed)."""
+    truth = np.asarray(true_pos_ned_m, float)
+    errors = np.empty((steps, 3))
+    for k in range(steps):
+        d = k * span_m / steps
+        pos = np.array(estimate.pos_ned_m, float)
+        pos[:2] += d * np.asarray(SWEEP_DIRECTION_NE)
+        fix, _ = pipe.process(image, t_s, replace(estimate, pos_ned_m=pos))
+        if fix is None:
+            return None
+        errors[k] = np.asarray(fix.pos_ned_m, float) - truth
+    return FrameSweep(t_s, errors)
+
+
+def summarise_sweeps(sweeps: list[FrameSweep], n_tried: int) -> dict:
+    """Over frames: RMS of the per-frame SD of the fix along the sweep (N, E, m), median of the
+    largest horizontal jump between neighbouring steps (m), RMS error at the unmoved prior (N, E, m)."""
+    out: dict = dict(n_frames=n_tried, n_used=len(sweeps))
+    if not sweeps:
+        return out
+    E = np.array([s.fix_error_ned_m for s in sweeps])  # (frames, steps, 3)
+    jumps = np.linalg.norm(np.diff(E[:, :, :2], axis=1), axis=2).max(axis=1)
+    out.update(sd_along_sweep_ne_m=np.sqrt((E[:, :, :2].std(axis=1) ** 2).mean(axis=0)).round(3).tolist(),
+               largest_jump_median_m=round(float(np.median(jumps)), 3),
+               error_at_prior_rms_ne_m=np.sqrt((E[:, 0, :2] ** 2).mean(axis=0)).round(3).tolist())
+    return out
+
+
 def summarise(frames: list[FrameSensitivity], n_tried: int) -> dict:
     """Mean and sd over frames of the measured Jacobian, the declared M and their difference."""
     out: dict = dict(n_frames=n_tried, n_used=len(frames), rows=["north_m", "east_m", "down_m"], inputs=list(INPUTS))
@@ -101,8 +157,9 @@ def run(args) -> dict:
     from testbench.navigation.ismn.harness import build, estimate_of, frame_for, recorded_rows, truth_of
 
     cv2.setNumThreads(1)
-    sensor, pipe, world = build(args.scenario, args.set or (), json.loads(args.pipeline or "{}"))
-    frames, n = [], 0
+    sensor, pipe, world = build(args.scenario, args.set or (), json.loads(args.pipeline or "{}"),
+                                json.loads(args.matcher or "{}"))
+    frames, sweeps, n = [], [], 0
     for row in recorded_rows(args.run_dir, args.t0, args.t1, args.step):
         n += 1
         truth = truth_of(row)
@@ -114,4 +171,11 @@ def run(args) -> dict:
         fs = frame_sensitivity(pipe, img, float(row.t_s), est, args.tilt_mrad * 1e-3, args.shift_m)
         if fs is not None:
             frames.append(fs)
-    return summarise(frames, n)
+        if args.sweep_steps:
+            sw = frame_sweep(pipe, img, float(row.t_s), est, truth.pos_ned_m, args.sweep_m, args.sweep_steps)
+            if sw is not None:
+                sweeps.append(sw)
+    out = summarise(frames, n)
+    if args.sweep_steps:
+        out["sweep"] = summarise_sweeps(sweeps, n)
+    return out

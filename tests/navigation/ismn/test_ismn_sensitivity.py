@@ -11,7 +11,8 @@ import pytest
 from testbench.cli import main
 from testbench.core.messages import NavEstimate, PositionFix
 from testbench.core.rotations import dcm_to_quat, euler_to_quat, quat_to_dcm, quat_to_rotvec
-from testbench.navigation.ismn.sensitivity import INPUTS, frame_sensitivity, summarise
+from testbench.navigation.ismn.sensitivity import (INPUTS, SWEEP_DIRECTION_NE, frame_sensitivity, frame_sweep,
+                                                    summarise, summarise_sweeps)
 
 SCENARIO = str(Path(__file__).resolve().parents[3] / "scenarios" / "paper_ismn_800m.yaml")
 
@@ -46,14 +47,38 @@ def test_central_differences_recover_a_known_linear_dependence():
     np.testing.assert_allclose(s["excess_att_mean"], np.zeros((3, 3)), atol=1e-3)
 
 
+def test_sweep_reports_the_spread_a_known_following_gives():
+    """A fix that follows the prior's north by 0.25 m/m: along a sweep of 1.6 m in 8 steps the
+    fix's north error is 0.25 x the prior's north offset, so its SD and largest jump are known;
+    a fix that ignores the prior has no spread."""
+    q = euler_to_quat(np.array([0.0, 0.0, 0.3]))
+    pos = np.array([10.0, 20.0, -800.0])
+    est = NavEstimate(0.0, pos.copy(), np.zeros(3), q, np.zeros(3), np.zeros(3), np.eye(3), np.eye(3), np.eye(3) * 1e-6)
+    follow = np.diag([0.25, 0.0, 0.0])
+    sw = frame_sweep(_LinearFixes(pos, q, np.zeros((3, 3)), follow), None, 0.0, est, pos, 1.6, 8)
+    north_offsets = np.arange(8) * 0.2 * SWEEP_DIRECTION_NE[0]
+    np.testing.assert_allclose(sw.fix_error_ned_m[:, 0], 0.25 * north_offsets, atol=1e-12)
+    s = summarise_sweeps([sw, sw], 3)
+    assert s["n_frames"] == 3 and s["n_used"] == 2
+    np.testing.assert_allclose(s["sd_along_sweep_ne_m"], [round(0.25 * north_offsets.std(), 3), 0.0], atol=1e-9)
+    assert s["largest_jump_median_m"] == pytest.approx(round(0.25 * 0.2 * SWEEP_DIRECTION_NE[0], 3))
+    assert s["error_at_prior_rms_ne_m"] == [0.0, 0.0]
+    still = summarise_sweeps([frame_sweep(_LinearFixes(pos, q, np.zeros((3, 3)), np.zeros((3, 3))), None, 0.0, est, pos, 1.6, 8)], 1)
+    assert still["sd_along_sweep_ne_m"] == [0.0, 0.0] and still["largest_jump_median_m"] == 0.0
+
+
 def test_cli_measures_a_recorded_runs_frames(tmp_path, capsys):
     run_dir = tmp_path / "run"
     assert main(["run", SCENARIO, "--set", "duration_s=2", "--no-report", "--out", str(run_dir)]) in (0, 3)
     capsys.readouterr()
     assert main(["ismn", "sensitivity", SCENARIO, str(run_dir), "--t0", "1", "--t1", "2", "--step", "1",
-                 "--pipeline", '{"max_heading_sigma_deg": null}', "--frames-dir", str(tmp_path / "frames")]) == 0
+                 "--pipeline", '{"max_heading_sigma_deg": null}', "--frames-dir", str(tmp_path / "frames"),
+                 "--sweep-steps", "3"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["n_frames"] == 2 and out["n_used"] == 2
+    sweep = out["sweep"]
+    assert sweep["n_used"] == 2 and len(sweep["sd_along_sweep_ne_m"]) == 2
+    assert np.isfinite(sweep["largest_jump_median_m"]) and max(sweep["error_at_prior_rms_ne_m"]) < 5.0
     J = np.array(out["measured_mean"])
     assert J.shape == (3, 5) and np.isfinite(J).all()
     # The prior's north position moves the fix north by less than it moves itself (a matcher
@@ -64,3 +89,5 @@ def test_cli_measures_a_recorded_runs_frames(tmp_path, capsys):
 def test_cli_refuses_a_zero_step(tmp_path, capsys):
     assert main(["ismn", "sensitivity", SCENARIO, str(tmp_path), "--shift-m", "0"]) == 2
     assert "--shift-m must be > 0" in capsys.readouterr().err
+    assert main(["ismn", "sensitivity", SCENARIO, str(tmp_path), "--sweep-steps", "4", "--sweep-m", "0"]) == 2
+    assert "--sweep-m > 0" in capsys.readouterr().err
