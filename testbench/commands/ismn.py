@@ -67,8 +67,9 @@ def _sensitivity(args) -> int:
 
     if not (args.tilt_mrad > 0 and args.shift_m > 0):
         raise InputError(f"--tilt-mrad and --shift-m must be > 0 (got {args.tilt_mrad}, {args.shift_m})")
-    if args.sweep_steps < 0 or (args.sweep_steps and not args.sweep_m > 0):
-        raise InputError(f"--sweep-steps must be >= 0 and --sweep-m > 0 (got {args.sweep_steps}, {args.sweep_m})")
+    if args.sweep_steps < 0 or args.sweep_steps == 1 or (args.sweep_steps and not args.sweep_m > 0):
+        raise InputError(f"--sweep-steps must be 0 (off) or >= 2 and --sweep-m > 0 "
+                         f"(got {args.sweep_steps}, {args.sweep_m})")
     summary = run(args)
     # One line per key (a matrix row-major on its line): valid JSON that reads as a table.
     print("{\n" + ",\n".join(f" {json.dumps(k)}: {json.dumps(v)}" for k, v in summary.items()) + "\n}")

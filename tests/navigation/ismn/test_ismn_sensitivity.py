@@ -91,3 +91,5 @@ def test_cli_refuses_a_zero_step(tmp_path, capsys):
     assert "--shift-m must be > 0" in capsys.readouterr().err
     assert main(["ismn", "sensitivity", SCENARIO, str(tmp_path), "--sweep-steps", "4", "--sweep-m", "0"]) == 2
     assert "--sweep-m > 0" in capsys.readouterr().err
+    assert main(["ismn", "sensitivity", SCENARIO, str(tmp_path), "--sweep-steps", "1"]) == 2
+    assert "or >= 2" in capsys.readouterr().err
