@@ -121,17 +121,27 @@ def frame_sweep(pipe, image: np.ndarray, t_s: float, estimate: NavEstimate, true
     return FrameSweep(t_s, errors)
 
 
-def summarise_sweeps(sweeps: list[FrameSweep], n_tried: int) -> dict:
+def summarise_sweeps(sweeps: list[FrameSweep], n_tried: int, span_m: float) -> dict:
     """Over frames: RMS of the per-frame SD of the fix along the sweep (N, E, m), median of the
-    largest horizontal jump between neighbouring steps (m), RMS error at the unmoved prior (N, E, m)."""
+    largest horizontal jump between neighbouring steps (m), RMS error at the unmoved prior (N, E,
+    m), and the following slope: the fix's move along the sweep per metre the prior moved, the
+    least-squares slope over all frames' steps (0: the fix ignores the prior; 1: it copies it;
+    a filter fusing such fixes as independent counts that share of its own error twice)."""
     out: dict = dict(n_frames=n_tried, n_used=len(sweeps))
     if not sweeps:
         return out
     E = np.array([s.fix_error_ned_m for s in sweeps])  # (frames, steps, 3)
+    steps = E.shape[1]
     jumps = np.linalg.norm(np.diff(E[:, :, :2], axis=1), axis=2).max(axis=1)
+    along = E[:, :, :2] @ np.asarray(SWEEP_DIRECTION_NE)  # (frames, steps) m along the sweep
+    d = np.arange(steps) * span_m / steps
+    dc = d - d.mean()
+    slopes = (along - along.mean(axis=1, keepdims=True)) @ dc / float(dc @ dc)  # (frames,)
     out.update(sd_along_sweep_ne_m=np.sqrt((E[:, :, :2].std(axis=1) ** 2).mean(axis=0)).round(3).tolist(),
                largest_jump_median_m=round(float(np.median(jumps)), 3),
-               error_at_prior_rms_ne_m=np.sqrt((E[:, 0, :2] ** 2).mean(axis=0)).round(3).tolist())
+               error_at_prior_rms_ne_m=np.sqrt((E[:, 0, :2] ** 2).mean(axis=0)).round(3).tolist(),
+               following_slope=round(float(slopes.mean()), 3),
+               following_slope_sd=round(float(slopes.std()), 3))
     return out
 
 
@@ -177,5 +187,5 @@ def run(args) -> dict:
                 sweeps.append(sw)
     out = summarise(frames, n)
     if args.sweep_steps:
-        out["sweep"] = summarise_sweeps(sweeps, n)
+        out["sweep"] = summarise_sweeps(sweeps, n, args.sweep_m)
     return out

@@ -58,13 +58,17 @@ def test_sweep_reports_the_spread_a_known_following_gives():
     sw = frame_sweep(_LinearFixes(pos, q, np.zeros((3, 3)), follow), None, 0.0, est, pos, 1.6, 8)
     north_offsets = np.arange(8) * 0.2 * SWEEP_DIRECTION_NE[0]
     np.testing.assert_allclose(sw.fix_error_ned_m[:, 0], 0.25 * north_offsets, atol=1e-12)
-    s = summarise_sweeps([sw, sw], 3)
+    s = summarise_sweeps([sw, sw], 3, 1.6)
     assert s["n_frames"] == 3 and s["n_used"] == 2
+    # Along the sweep the fix moves by 0.25 x its north part, projected back on the sweep.
+    assert s["following_slope"] == pytest.approx(round(0.25 * SWEEP_DIRECTION_NE[0] ** 2, 3))
+    assert s["following_slope_sd"] == 0.0
     np.testing.assert_allclose(s["sd_along_sweep_ne_m"], [round(0.25 * north_offsets.std(), 3), 0.0], atol=1e-9)
     assert s["largest_jump_median_m"] == pytest.approx(round(0.25 * 0.2 * SWEEP_DIRECTION_NE[0], 3))
     assert s["error_at_prior_rms_ne_m"] == [0.0, 0.0]
-    still = summarise_sweeps([frame_sweep(_LinearFixes(pos, q, np.zeros((3, 3)), np.zeros((3, 3))), None, 0.0, est, pos, 1.6, 8)], 1)
+    still = summarise_sweeps([frame_sweep(_LinearFixes(pos, q, np.zeros((3, 3)), np.zeros((3, 3))), None, 0.0, est, pos, 1.6, 8)], 1, 1.6)
     assert still["sd_along_sweep_ne_m"] == [0.0, 0.0] and still["largest_jump_median_m"] == 0.0
+    assert still["following_slope"] == 0.0
 
 
 def test_cli_measures_a_recorded_runs_frames(tmp_path, capsys):
