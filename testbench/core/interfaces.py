@@ -88,7 +88,11 @@ class Sensor(abc.ABC):
 
 
 class Navigator(abc.ABC):
-    """Turns one vehicle's measurements into its state estimate."""
+    """Turns one vehicle's measurements into its state estimate.
+
+    Built as Class(params, ctx=BuildContext, aircraft=dict, rng=np.random.Generator, ...): rng is
+    the vehicle's own "navigation/alignment" stream (e.g. for drawing the alignment error);
+    accept **kwargs for what a navigator does not use."""
 
     @abc.abstractmethod
     def initialize(self, t_s: float, initial: NavEstimate) -> None:

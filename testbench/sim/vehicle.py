@@ -105,7 +105,8 @@ def build_vehicle(scn: Scenario, v: Vehicle, world: RunWorld, streams: RngStream
     sensors.sort(key=lambda s: 0 if type(s.sensor).__name__.lower().startswith("imu") else 1)
 
     navigator = registry.build("navigator", v.navigation.type, v.navigation.params, f"{base}.navigation",
-                               ctx=ctx_onboard, aircraft=dyn.aircraft_meta)
+                               ctx=ctx_onboard, aircraft=dyn.aircraft_meta,
+                               rng=streams.generator("vehicle", v.id, "navigation", "alignment"))
     by_name = {s.name: s.sensor for s in sensors}
     onboard = {"reference_map": world.reference_map, "reference_elevation": world.reference_elevation, "same_raster": world.same_raster}
     aids = [

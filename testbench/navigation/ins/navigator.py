@@ -50,6 +50,14 @@ class InsEkfNavigator(Navigator):
         """How the filter carries the IMU biases (see ErrorStateEKF): random_walk holds the
         turn-on bias it has estimated; gauss_markov lets estimates decay towards zero."""
         initial_sigma: InitialSigmas = InitialSigmas()
+        initial_error: Literal["none", "sampled"] = "none"
+        """The error the pre-flight alignment leaves in the starting position, velocity and
+        attitude. none: the estimate starts at the true state (the alignment is modelled as
+        exact) while the filter claims initial_sigma; sampled: the starting state is displaced
+        by a draw from the filter's own P0 (position, velocity, tilt and heading blocks), from
+        the vehicle's "navigation/alignment" random stream, so that x0 ~ N(x0_hat, P0) as a
+        Monte Carlo consistency (NEES) test assumes. With none, the first seconds of every run
+        are underconfident by construction (error 0 against a 3 m claim)."""
         meas_sigma: MeasurementSigmas = MeasurementSigmas()
         gate_probability: float = pydantic.Field(0.999, gt=0.5, le=1.0)
         cov_interval_s: float = pydantic.Field(0.05, ge=0.0, le=1.0)
@@ -132,9 +140,14 @@ class InsEkfNavigator(Navigator):
         drag_aiding: DragAiding | None = None
         """Rotor-drag velocity aiding (multirotors in calm air; see DragAiding); None: off."""
 
-    def __init__(self, params: "InsEkfNavigator.Params", *, ctx: BuildContext, aircraft: dict | None = None, **_: object):
+    def __init__(self, params: "InsEkfNavigator.Params", *, ctx: BuildContext, aircraft: dict | None = None,
+                 rng: np.random.Generator | None = None, **_: object):
         self.params = params
         self.ctx = ctx
+        if params.initial_error == "sampled" and rng is None:
+            raise ValueError("InsEkfNavigator: initial_error 'sampled' needs a random stream (rng=...)")
+        self._alignment_rng = rng
+        """The stream the alignment error is drawn from (initial_error sampled); nothing else uses it."""
         try:
             sheet = preset_datasheet(params.imu_preset)
         except KeyError:
@@ -201,8 +214,20 @@ class InsEkfNavigator(Navigator):
                 P0[sl, sl] = rot @ c @ rot.T if rot is not None else c
         self.ekf.initialize(t_s, float(lat), float(lon), float(h), initial.vel_ned_mps,
                             initial.q_nb_wxyz, P0)
+        if self.params.initial_error == "sampled":
+            self.ekf.inject(self.alignment_error(P0))
         self._initialized = True
         self._estimate = None
+
+    def alignment_error(self, P0: np.ndarray) -> np.ndarray:
+        """A draw of the alignment's error state (N_STATES,): position (NED m), velocity (NED
+        m/s) and attitude (rad) from their block of P0, jointly; the other states zero (their
+        true values are drawn by the sensors themselves: IMU and barometer turn-on biases, the
+        GNSS receiver's correlated error)."""
+        dx = np.zeros(N_STATES)
+        nav = np.r_[IP, IV, IA]
+        dx[nav] = self._alignment_rng.multivariate_normal(np.zeros(len(nav)), P0[np.ix_(nav, nav)], method="cholesky")
+        return dx
 
     def initial_covariance(self) -> np.ndarray:
         """P0 (23, 23) from Params.initial_sigma (GNSS and fix error states and the drag scale: their steady state)."""
