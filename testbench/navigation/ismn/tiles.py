@@ -8,9 +8,21 @@ false one (a false peak of one tile lands anywhere; the true offsets of all tile
 the smooth distortion an attitude error leaves in the ortho view).
 
 Consensus (`tile_consensus`): every tile's offset is a translation hypothesis; the one with the
-largest NCC-weighted support within `consensus_px` wins; then an affine map ortho -> map is fitted
-to its supporters (iteratively reweighted, Cauchy) and the inliers are those within
-`inlier_px` of it. The per-correspondence variance comes from the affine residuals.
+largest NCC-weighted support within `consensus_px` wins; then a map ortho -> map is fitted to its
+supporters (iteratively reweighted, Cauchy) and the inliers are those within `inlier_px` of it.
+The per-correspondence variance comes from the fit's residuals.
+
+The fitted map is an affine when six tiles or more agree (else a translation), or, with
+projective=True, a homography (8 dof) when ten or more agree. The ortho view is the ground plane
+seen through the estimated camera; an attitude error of that estimate maps it onto the true
+ground by a plane homography, whose projective part grows as 1 / cos^2 off nadir (a 120 deg
+view over +-44..60 deg: up to three times the nadir shift). An affine cannot follow it, and its
+inlier gate keeps the outer tiles whose noise happens to flatten that pattern and drops the
+others: the surviving correspondences under-read the tilt signature, and the pose solve turns
+the rest into position (paper_ismn_800m frames, prior tilted by 3 mrad: the outer tiles'
+displacement read 10-20 % short, a third of the tiles dropped, the fix moved by 0.8-1.2 m; with
+the homography 1-2 % and 0.1-0.5 m). See AreaMatcherBase.Params.consensus_model for why the
+affine is still the default.
 """
 
 from __future__ import annotations
@@ -157,29 +169,69 @@ def refine_tiles(pyr_o, pyr_m, origin0, offset0, radius0_px: float, tiles, T0: i
     return TileMatches(np.array(o_list), np.array(m_list), np.array(n_list), np.array(s_list))
 
 
+#: Fewest agreeing tiles for each model of the consensus (fewer: a translation).
+MIN_TILES_AFFINE = 6
+MIN_TILES_HOMOGRAPHY = 10
+
+
 @dataclass(frozen=True)
 class Consensus:
-    """inliers (N,) bool; A (2, 3) affine ortho px -> map px (None if under 6 inliers: then a
-    translation); var_px2: variance of one correspondence (per axis) from the residuals;
-    support: NCC-weighted share of the tiles that agree."""
+    """inliers (N,) bool; H (3, 3) the fitted map ortho px -> map px in homogeneous
+    coordinates (H[2, 2] = 1; None for a translation), kind: "homography", "affine" (H's last
+    row [0, 0, 1]) or "translation"; var_px2: variance of one correspondence (per axis) from
+    the residuals; support: NCC-weighted share of the tiles that agree."""
 
     inliers: np.ndarray
-    A: np.ndarray | None
+    H: np.ndarray | None
+    kind: str
     var_px2: float
     support: float
 
 
 def _fit_affine(o, m, w):
-    """Weighted least-squares affine (2, 3) with m ~ A [o, 1]."""
+    """Weighted least-squares affine as a (3, 3) homogeneous map with m ~ A [o, 1]."""
     X = np.c_[o, np.ones(len(o))] * np.sqrt(w)[:, None]
     Y = m * np.sqrt(w)[:, None]
     sol, *_ = np.linalg.lstsq(X, Y, rcond=None)
-    return sol.T
+    return np.vstack([sol.T, [0.0, 0.0, 1.0]])
+
+
+def _similarity_normaliser(p):
+    """(3, 3) T moving points p (N, 2) to zero mean and mean distance sqrt(2) (Hartley)."""
+    c = p.mean(axis=0)
+    d = float(np.mean(np.hypot(*(p - c).T)))
+    k = math.sqrt(2.0) / d if d > 0 else 1.0
+    return np.array([[k, 0.0, -k * c[0]], [0.0, k, -k * c[1]], [0.0, 0.0, 1.0]])
+
+
+def _fit_homography(o, m, w):
+    """Weighted normalised DLT homography (3, 3), H[2, 2] = 1, with m ~ H [o, 1] (Hartley and
+    Zisserman 2004, alg. 4.2); None when degenerate."""
+    To, Tm = _similarity_normaliser(o), _similarity_normaliser(m)
+    on = o @ To[:2, :2].T + To[:2, 2]
+    mn = m @ Tm[:2, :2].T + Tm[:2, 2]
+    x, y, u, v = on[:, 0], on[:, 1], mn[:, 0], mn[:, 1]
+    one, zero = np.ones_like(x), np.zeros_like(x)
+    rows = np.empty((2 * len(o), 9))
+    rows[0::2] = np.c_[-x, -y, -one, zero, zero, zero, u * x, u * y, u]
+    rows[1::2] = np.c_[zero, zero, zero, -x, -y, -one, v * x, v * y, v]
+    rows *= np.repeat(np.sqrt(w), 2)[:, None]
+    _, _, vt = np.linalg.svd(rows)
+    H = np.linalg.solve(Tm, vt[-1].reshape(3, 3) @ To)
+    return H / H[2, 2] if abs(H[2, 2]) > 1e-12 else None
+
+
+def _apply(H, p):
+    """Points p (N, 2) through the homogeneous map H (3, 3)."""
+    q = p @ H[:2, :2].T + H[:2, 2]
+    z = p @ H[2, :2] + H[2, 2]
+    return q / z[:, None]
 
 
 def tile_consensus(t: TileMatches, consensus_px: float = 3.0, inlier_px: float = 1.5,
-                   min_var_px2: float = 0.02) -> Consensus | None:
-    """Robust agreement of the tiles (module docstring); None when no two tiles agree."""
+                   min_var_px2: float = 0.02, projective: bool = False) -> Consensus | None:
+    """Robust agreement of the tiles (module docstring); None when no two tiles agree.
+    projective: fit a homography (ten tiles or more) instead of an affine."""
     n = len(t.ncc)
     if n < 2:
         return None
@@ -194,25 +246,32 @@ def tile_consensus(t: TileMatches, consensus_px: float = 3.0, inlier_px: float =
     if inl.sum() < 2:
         return None
     def model(inl):
-        """(A or None, predicted map px of every tile) from the tiles in inl."""
-        if inl.sum() >= 6:
+        """(H or None, kind, predicted map px of every tile) from the tiles in inl."""
+        k = int(inl.sum())
+        if k >= MIN_TILES_AFFINE:
             o, m, ww = t.ortho_px[inl], t.map_px[inl], w[inl]
-            A = _fit_affine(o, m, ww)
+            fit, kind = ((_fit_homography, "homography") if projective and k >= MIN_TILES_HOMOGRAPHY
+                         else (_fit_affine, "affine"))
+            H = fit(o, m, ww)
             for _ in range(3):  # Cauchy IRLS: a stray tile does not bend the fit
-                r = np.hypot(*(m - (o @ A[:, :2].T + A[:, 2])).T)
-                A = _fit_affine(o, m, ww / (1.0 + (r / inlier_px) ** 2))
-            return A, t.ortho_px @ A[:, :2].T + A[:, 2]
-        return None, t.ortho_px + np.average(d[inl], axis=0, weights=w[inl])
+                if H is None:
+                    break
+                r = np.hypot(*(m - _apply(H, o)).T)
+                H = fit(o, m, ww / (1.0 + (r / inlier_px) ** 2))
+            if H is None:  # degenerate layout: the affine (always defined) instead
+                H, kind = _fit_affine(o, m, ww), "affine"
+            return H, kind, _apply(H, t.ortho_px)
+        return None, "translation", t.ortho_px + np.average(d[inl], axis=0, weights=w[inl])
 
     for _ in range(3):
-        A, pred = model(inl)
-        new = np.hypot(*(t.map_px - pred).T) < (inlier_px if A is not None else consensus_px)
+        H, kind, pred = model(inl)
+        new = np.hypot(*(t.map_px - pred).T) < (inlier_px if H is not None else consensus_px)
         if new.sum() < 2 or (new == inl).all():
             break
         inl = new
-    A, pred = model(inl)
+    H, kind, pred = model(inl)
     k = int(inl.sum())
     resid = (t.map_px - pred)[inl]
-    dof = 2 * k - (6 if A is not None else 2)
+    dof = 2 * k - {"homography": 8, "affine": 6, "translation": 2}[kind]
     var = float((resid**2).sum()) / dof if dof > 0 else 0.5
-    return Consensus(inl, A, max(var, min_var_px2), float(w[inl].sum() / w.sum()))
+    return Consensus(inl, H, kind, max(var, min_var_px2), float(w[inl].sum() / w.sum()))
