@@ -134,7 +134,7 @@ class AreaMatcherBase(SceneMatcher):
         model, calibrated with the affine, is then cautious once GNSS is gone (100-run NEES
         share 0.64 against 0.88), and no one shared-error setting fits both phases (0.16 /
         0.075 m: 0.70, overconfident while GNSS is on): the fixes' remaining lean on the prior
-        heading (about 80 m/rad, declared 3) is larger while the heading is young. Default
+        heading (about 80 m/rad, declared 2.5) is larger while the heading is young. Default
         affine until that coupling is modelled."""
 
     def __init__(self, params=None, *, ctx=None):
