@@ -134,9 +134,10 @@ class AreaMatcherBase(SceneMatcher):
         0.18 -> 0.08 m; naip_ismn_800m 1.52 -> 1.56 m). But the filter's fix error
         model, calibrated with the affine, is then cautious once GNSS is gone (100-run NEES
         share 0.64 against 0.88), and no one shared-error setting fits both phases (0.16 /
-        0.075 m: 0.70, overconfident while GNSS is on): the fixes' remaining lean on the prior
-        heading (about 80 m/rad, declared 2.5) is larger while the heading is young. Default
-        affine until that coupling is modelled."""
+        0.075 m: 0.70, overconfident while GNSS is on). In closed loop the fixes still lean on
+        the filter's tilt error by about 100-110 m/rad (affine 290-310, declared about 20),
+        hardly on its heading. Default affine until that lean is declared or removed and the
+        fix error model recalibrated."""
 
     def __init__(self, params=None, *, ctx=None):
         self.p = params if params is not None else self.Params()
