@@ -99,7 +99,20 @@ def _nees_html(nees: dict[str, Any] | None) -> str:
         f"<h2>Filter consistency</h2><p>Average position NEES over {nees['runs']} runs (3 dof): inside its 95 % "
         f"bounds [{_fmt(nees['bound_low'])}, {_fmt(nees['bound_high'])}] at {100 * nees['fraction_within']:.1f} % "
         f"of {nees['samples']} record times, above at {100 * nees['fraction_above']:.1f} %; time mean "
-        f"{_fmt(nees['mean_of_average'])} (3 for a consistent filter).</p>"
+        f"{_fmt(nees['mean_of_average'])} (3 for a consistent filter).{_chance_html(nees)}</p>"
+    )
+
+
+def _chance_html(nees: dict[str, Any]) -> str:
+    """The sentence on what a consistent filter would show (batch.consistency.chance_shares)."""
+    p05, p = nees.get("chance_share_p05"), nees.get("chance_p_value")
+    if p05 is None or p is None or not (math.isfinite(p05) and math.isfinite(p)):
+        return ""
+    return (
+        f" A consistent filter whose errors had this batch's time correlation would be inside "
+        f"{100 * nees['chance_share_mean']:.1f} % of the time on average, above {100 * p05:.1f} % in 95 % of "
+        f"batches, and inside at most this batch's share in {100 * p:.1f} % of them (small: worse than chance "
+        f"allows)."
     )
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 
 
@@ -58,4 +59,12 @@ def run(args: argparse.Namespace) -> int:
     bar.close()
     counts = result.summary["status_counts"]
     print(f"batch {args.out}: {len(result.rows)}/{args.runs} runs ({result.skipped} resumed), status {counts}")
+    nees = result.summary.get("nees_position")
+    if nees:
+        line = (f"position NEES: average of {nees['runs']} runs inside its 95 % band {nees['fraction_within']:.3f} "
+                f"of the time, mean {nees['mean_of_average']:.2f} (3 consistent)")
+        if math.isfinite(nees.get("chance_p_value", math.nan)):
+            line += (f"; a consistent filter with these errors' time correlation: {nees['chance_share_mean']:.3f} on "
+                     f"average, 5th percentile {nees['chance_share_p05']:.3f}, p = {nees['chance_p_value']:.3f}")
+        print(line)
     return 0 if counts.get("error", 0) == 0 else 1

@@ -74,6 +74,26 @@ def position_nees(tel: pd.DataFrame) -> np.ndarray:
     return np.where(ok, nees, np.nan)
 
 
+def position_errors_whitened(tel: pd.DataFrame) -> np.ndarray:
+    """nav - truth position whitened by the estimate's own covariance, z = L^-1 e with
+    P = L L^T (north-east block with its covariance, down apart), shape (n, 3), unitless; NaN
+    where the covariance is unusable. A consistent filter's z has unit variance per component
+    and z.z is the position NEES."""
+    e = position_errors_ned_m(tel)
+    sn2 = column(tel, "nav_sigma_north_m") ** 2
+    se2 = column(tel, "nav_sigma_east_m") ** 2
+    sd2 = column(tel, "nav_sigma_down_m") ** 2
+    cne = np.nan_to_num(column(tel, "nav_cov_ne_m2"), nan=0.0)
+    det = sn2 * se2 - cne * cne
+    ok = (det > 0) & (sn2 > 0) & (sd2 > 0) & np.isfinite(det) & np.isfinite(sd2)
+    l11 = np.sqrt(np.where(ok, sn2, 1.0))
+    l21 = np.where(ok, cne, 0.0) / l11
+    l22 = np.sqrt(np.where(ok, det, 1.0) / np.where(ok, sn2, 1.0))
+    z1 = e[:, 0] / l11
+    z = np.stack([z1, (e[:, 1] - l21 * z1) / l22, e[:, 2] / np.sqrt(np.where(ok, sd2, 1.0))], axis=1)
+    return np.where(ok[:, None], z, np.nan)
+
+
 def lost_at_s(tel: pd.DataFrame) -> float | None:
     """Earliest time (s) from which some vehicle's position NEES stays above LOST_NEES for at
     least LOST_HOLD_S (rows without a covariance break a streak); None if it never does."""

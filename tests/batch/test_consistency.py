@@ -10,10 +10,18 @@ import pytest
 from testbench.batch.consistency import nees_consistency
 
 
-def _write_run(folder: Path, rng: np.random.Generator, sigma_m: np.ndarray, error_scale: float, n: int = 400) -> Path:
+def _write_run(folder: Path, rng: np.random.Generator, sigma_m: np.ndarray, error_scale: float, n: int = 400,
+               tau_s: float = 0.0, t: np.ndarray | None = None) -> Path:
+    """A run whose position error is error_scale times its claimed sigma, white or a first-order
+    Gauss-Markov process of correlation time tau_s (stationary from the start)."""
     folder.mkdir(parents=True)
-    t = np.arange(n) * 0.1
-    err = rng.standard_normal((n, 3)) * sigma_m * error_scale
+    t = np.arange(n) * 0.1 if t is None else t
+    w = rng.standard_normal((n, 3))
+    if tau_s > 0:
+        a = np.exp(-0.1 / tau_s)
+        for i in range(1, n):
+            w[i] = a * w[i - 1] + np.sqrt(1 - a * a) * w[i]
+    err = w * sigma_m * error_scale
     truth = np.zeros((n, 3))
     tel = pd.DataFrame({
         "vehicle_id": "uav0", "t_s": t,
@@ -41,3 +49,53 @@ def test_average_nees_flags_an_overconfident_filter(tmp_path, scale, within_min,
 def test_needs_two_runs(tmp_path):
     d = _write_run(tmp_path / "run_00000", np.random.default_rng(1), np.ones(3), 1.0)
     assert nees_consistency([d]) is None
+
+
+def _batch(tmp_path: Path, scale: float, tau_s: float, runs: int = 20, seed: int = 3):
+    rng = np.random.default_rng(seed)
+    sigma = np.array([2.0, 3.0, 1.5])
+    return nees_consistency([_write_run(tmp_path / f"run_{k:05d}", rng, sigma, scale, n=600, tau_s=tau_s)
+                             for k in range(runs)])
+
+
+def test_chance_figures_of_a_consistent_batch(tmp_path):
+    """Errors correlated over 5 s that follow the claimed covariance: a consistent filter's
+    fraction averages 95 % by construction, and this batch's is no worse than chance."""
+    res = _batch(tmp_path, 1.0, 5.0)
+    assert res.chance_share_mean == pytest.approx(0.95, abs=0.015)
+    assert res.chance_share_p05 < 0.94
+    assert res.chance_p_value > 0.05
+
+
+def test_chance_widens_with_correlation_time(tmp_path):
+    """Longer-correlated errors give fewer independent looks at the bounds, so a consistent
+    filter's fraction spreads wider: a lower 5th percentile than white errors."""
+    white = _batch(tmp_path / "white", 1.0, 0.0)
+    slow = _batch(tmp_path / "slow", 1.0, 8.0)
+    assert white.chance_share_p05 > slow.chance_share_p05 + 0.03
+
+
+def test_chance_flags_an_overconfident_batch(tmp_path):
+    res = _batch(tmp_path, 1.4, 5.0)
+    assert res.fraction_within < res.chance_share_p05
+    assert res.chance_p_value < 0.01
+
+
+def test_chance_needs_even_record_times(tmp_path):
+    rng = np.random.default_rng(2)
+    t = np.cumsum(rng.uniform(0.05, 0.15, 300))
+    dirs = [_write_run(tmp_path / f"run_{k:05d}", rng, np.ones(3), 1.0, n=300, t=t) for k in range(5)]
+    res = nees_consistency(dirs)
+    assert res.samples == 300 and np.isnan(res.chance_p_value) and np.isnan(res.chance_share_p05)
+
+
+def test_batch_report_states_the_chance_figures(tmp_path):
+    from testbench.batch.report import _nees_html
+
+    res = _batch(tmp_path, 1.4, 5.0)
+    html = _nees_html(res.as_dict())
+    assert f"{100 * res.fraction_within:.1f} %" in html
+    assert f"above {100 * res.chance_share_p05:.1f} % in 95 % of batches" in html
+    assert f"inside at most this batch's share in {100 * res.chance_p_value:.1f} % of them" in html
+    # Without the chance figures (uneven record times) the sentence is left out.
+    assert "consistent filter whose errors" not in _nees_html({**res.as_dict(), "chance_p_value": float("nan")})
