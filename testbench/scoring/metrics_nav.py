@@ -57,16 +57,23 @@ def row_durations_s(tel: pd.DataFrame) -> np.ndarray:
     return out
 
 
-def position_nees(tel: pd.DataFrame) -> np.ndarray:
-    """Position NEES per row (3 dof), NaN where the covariance is unusable, shape (n,)."""
-    e = position_errors_ned_m(tel)
+def _position_covariance(tel: pd.DataFrame):
+    """The estimate's position covariance per row as (sn2, se2, sd2, cne, det, ok): the north,
+    east and down variances (m^2), the north-east covariance (m^2), the north-east block's
+    determinant (m^4; 1 where unusable) and whether the row's covariance is usable, each (n,)."""
     sn2 = column(tel, "nav_sigma_north_m") ** 2
     se2 = column(tel, "nav_sigma_east_m") ** 2
     sd2 = column(tel, "nav_sigma_down_m") ** 2
     cne = np.nan_to_num(column(tel, "nav_cov_ne_m2"), nan=0.0)
     det = sn2 * se2 - cne * cne
     ok = (det > 0) & (sn2 > 0) & (sd2 > 0) & np.isfinite(det) & np.isfinite(sd2)
-    det = np.where(ok, det, 1.0)
+    return sn2, se2, sd2, cne, np.where(ok, det, 1.0), ok
+
+
+def position_nees(tel: pd.DataFrame) -> np.ndarray:
+    """Position NEES per row (3 dof), NaN where the covariance is unusable, shape (n,)."""
+    e = position_errors_ned_m(tel)
+    sn2, se2, sd2, cne, det, ok = _position_covariance(tel)
     en, ee, ed = e[:, 0], e[:, 1], e[:, 2]
     # e_h^T P_h^-1 e_h with the closed-form 2x2 inverse, plus the independent down term.
     horiz = (se2 * en * en - 2.0 * cne * en * ee + sn2 * ee * ee) / det
@@ -80,15 +87,10 @@ def position_errors_whitened(tel: pd.DataFrame) -> np.ndarray:
     where the covariance is unusable. A consistent filter's z has unit variance per component
     and z.z is the position NEES."""
     e = position_errors_ned_m(tel)
-    sn2 = column(tel, "nav_sigma_north_m") ** 2
-    se2 = column(tel, "nav_sigma_east_m") ** 2
-    sd2 = column(tel, "nav_sigma_down_m") ** 2
-    cne = np.nan_to_num(column(tel, "nav_cov_ne_m2"), nan=0.0)
-    det = sn2 * se2 - cne * cne
-    ok = (det > 0) & (sn2 > 0) & (sd2 > 0) & np.isfinite(det) & np.isfinite(sd2)
+    sn2, _, sd2, cne, det, ok = _position_covariance(tel)
     l11 = np.sqrt(np.where(ok, sn2, 1.0))
     l21 = np.where(ok, cne, 0.0) / l11
-    l22 = np.sqrt(np.where(ok, det, 1.0) / np.where(ok, sn2, 1.0))
+    l22 = np.sqrt(det / np.where(ok, sn2, 1.0))
     z1 = e[:, 0] / l11
     z = np.stack([z1, (e[:, 1] - l21 * z1) / l22, e[:, 2] / np.sqrt(np.where(ok, sd2, 1.0))], axis=1)
     return np.where(ok[:, None], z, np.nan)

@@ -5,7 +5,7 @@ import pytest
 from scoring_helpers import record_of, straight_telemetry
 from testbench.scoring import score_record
 from testbench.scoring.metrics_control import compute_control, cross_track_m
-from testbench.scoring.metrics_nav import compute_nav, position_nees
+from testbench.scoring.metrics_nav import compute_nav, position_errors_whitened, position_nees
 from testbench.scoring.phases import event_turning, turn_rate_rps
 
 
@@ -63,8 +63,14 @@ def test_position_nees_with_correlated_covariance(rng):
     # Ignoring the correlation would bias NEES: the closed form must use the full 2x2 block.
     direct = np.einsum("ni,ij,nj->n", e_h, np.linalg.inv(P_h), e_h) + (e_d / 3.0) ** 2
     assert np.allclose(position_nees(tel), direct)
+    # Whitened by the same covariance, the errors are unit and uncorrelated, and z.z is the NEES.
+    z = position_errors_whitened(tel)
+    assert np.allclose(np.cov(z.T), np.eye(3), atol=0.03)
+    assert np.allclose((z**2).sum(axis=1), direct)
     tel["nav_cov_ne_m2"] = 0.0
     assert not np.allclose(position_nees(tel), direct)
+    tel.loc[5, "nav_cov_ne_m2"] = 3.5  # |cov| > sigma_n sigma_e: no covariance, no figures
+    assert np.isnan(position_errors_whitened(tel)[5]).all() and np.isnan(position_nees(tel)[5])
 
 
 def test_lost_navigator_is_flagged_when_its_error_outgrows_its_covariance():
