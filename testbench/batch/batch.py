@@ -5,6 +5,8 @@ DIR/runs/run_NNNNN/ each run's own output contract plus result.json when it fini
 DIR/runs.parquet    one row per finished run (seed, varied parameters, every scalar metric,
                     status, error text), rewritten as runs finish
 DIR/summary.json    statistics with confidence intervals
+DIR/nees_position.parquet  the runs' average position NEES per record time (batch.consistency),
+                    when the runs have a covariance
 DIR/report.html     histograms, CDFs, metric vs varied parameter
 """
 
@@ -82,7 +84,7 @@ def run_batch(
         ordered = [rows[i] for i in sorted(rows)]
         write_runs_parquet(out / "runs.parquet", rows)
         summary = summarize(ordered, plan.runs)
-        summary["nees_position"] = _nees_summary(runs_dir, ordered)
+        summary["nees_position"] = _nees_summary(runs_dir, ordered, out / "nees_position.parquet")
         (out / "summary.json").write_text(json.dumps(_json_safe(summary), indent=2, sort_keys=True) + "\n", encoding="utf-8")
     if report:
         from testbench.batch.report import write_batch_report
@@ -91,10 +93,11 @@ def run_batch(
     return BatchResult(out, ordered, summary, skipped)
 
 
-def _nees_summary(runs_dir: Path, rows: list[dict[str, Any]]) -> dict[str, float] | None:
+def _nees_summary(runs_dir: Path, rows: list[dict[str, Any]], series_path: Path) -> dict[str, float] | None:
     """Average position NEES over the finished runs (batch.consistency), or None when fewer
-    than two finished runs have a covariance. Never fails the batch: a run folder that cannot
-    be read is left out with a warning."""
+    than two finished runs have a covariance; its time series goes to series_path (removed
+    when there is none, so that a resumed batch never shows a stale one). Never fails the
+    batch: a run folder that cannot be read is left out with a warning."""
     from testbench.batch.consistency import nees_consistency
 
     dirs = []
@@ -106,8 +109,14 @@ def _nees_summary(runs_dir: Path, rows: list[dict[str, Any]]) -> dict[str, float
         res = nees_consistency(dirs)
     except Exception as exc:  # noqa: BLE001 -- a statistic must not lose the batch
         log.warning("NEES consistency not computed: %s", exc)
+        res = None
+    series_path.unlink(missing_ok=True)
+    if res is None:
         return None
-    return None if res is None else res.as_dict()
+    tmp = series_path.with_suffix(".parquet.part")
+    res.series.to_parquet(tmp, index=False)
+    tmp.replace(series_path)
+    return res.as_dict()
 
 
 def _check_identity(path: Path, plan: BatchPlan) -> None:

@@ -21,7 +21,7 @@ fraction a consistent filter would show and the chance of one as low as the batc
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -52,6 +52,9 @@ class NeesConsistency:
     autocorrelation (see the module docstring); chance_p_value: the share of those batches
     whose fraction is at most this batch's (small: worse than chance allows). NaN when the
     record times are not evenly spaced.
+    series: per instant (rows: vehicle_id, t_s) the average NEES (`average_nees`, 3 dof) and
+    the average squared whitened error per axis (`average_z2_north`, `_east`, `_down`, 1 dof
+    each: above 1 the filter claims less than that axis errs); not part of as_dict.
     """
 
     runs: int
@@ -64,6 +67,7 @@ class NeesConsistency:
     chance_share_mean: float = float("nan")
     chance_share_p05: float = float("nan")
     chance_p_value: float = float("nan")
+    series: pd.DataFrame | None = field(default=None, repr=False, compare=False)
 
     def as_dict(self) -> dict[str, float]:
         return {
@@ -101,7 +105,8 @@ def nees_consistency(run_dirs: list[Path], probability: float = 0.95) -> NeesCon
     n = len(run_dirs)
     lo, hi = average_nees_bounds(POSITION_DOF, n, probability)
     z = table.to_numpy().reshape(len(table), n, POSITION_DOF)     # (instants, runs, component)
-    avg = (z**2).sum(axis=2).mean(axis=1)
+    z2 = (z**2).mean(axis=1)                                        # (instants, component)
+    avg = z2.sum(axis=1)
     within = float(np.mean((avg >= lo) & (avg <= hi)))
     chance = chance_shares(table, n, (lo, hi))
     return NeesConsistency(
@@ -112,6 +117,10 @@ def nees_consistency(run_dirs: list[Path], probability: float = 0.95) -> NeesCon
         chance_share_mean=float(np.mean(chance)) if chance is not None else float("nan"),
         chance_share_p05=float(np.percentile(chance, 5)) if chance is not None else float("nan"),
         chance_p_value=float(np.mean(chance <= within)) if chance is not None else float("nan"),
+        series=pd.DataFrame({
+            "vehicle_id": table.index.get_level_values(0).astype(str), "t_s": table.index.get_level_values(1),
+            "average_nees": avg, "average_z2_north": z2[:, 0], "average_z2_east": z2[:, 1], "average_z2_down": z2[:, 2],
+        }),
     )
 
 

@@ -81,7 +81,7 @@ def write_batch_report(out_dir: Path, rows: list[dict[str, Any]], summary: dict[
 <h1>Monte Carlo batch {html.escape(out_dir.name)}</h1>
 <p>{summary['runs_done']} of {summary['runs_planned']} runs done; status: {html.escape(str(summary['status_counts']))}.
 Threshold pass rate {_fmt(pr['value'])} (95 % CI {_fmt(pr['ci95_low'])} to {_fmt(pr['ci95_high'])}, n = {pr['n']}).</p>
-{_nees_html(summary.get("nees_position"))}
+{_nees_html(summary.get("nees_position"))}{_nees_figure_html(out_dir / "nees_position.parquet", summary.get("nees_position"))}
 <h2>Runs that did not pass</h2><table><tr><th>run</th><th>status</th><th>error</th></tr>{run_rows or '<tr><td colspan=3>none</td></tr>'}</table>
 <h2>Figures</h2>{''.join(f'<figure><img alt="{html.escape(t)}" src="data:image/png;base64,{b}"><figcaption>{html.escape(t)}</figcaption></figure>' for t, b in figures)}
 <h2>Statistics</h2><table><tr><th>metric</th><th>n</th><th>mean</th><th>CI95 low</th><th>CI95 high</th><th>std</th><th>median</th><th>p95</th><th>max</th></tr>{stat_rows}</table>
@@ -101,6 +101,38 @@ def _nees_html(nees: dict[str, Any] | None) -> str:
         f"of {nees['samples']} record times, above at {100 * nees['fraction_above']:.1f} %; time mean "
         f"{_fmt(nees['mean_of_average'])} (3 for a consistent filter).{_chance_html(nees)}</p>"
     )
+
+
+def _nees_figure_html(series_path: Path, nees: dict[str, Any] | None) -> str:
+    """The batch's average NEES against time with its 95 % band, and each axis's average squared
+    whitened error with its own 1-dof band (which axis, when, over- or under-confident; east is
+    whitened given north, which differs from east alone only by their correlation); empty
+    without the series (batch.consistency.NeesConsistency.series)."""
+    if not nees or not series_path.is_file():
+        return ""
+    import pandas as pd
+
+    from testbench.navigation.ins.consistency import average_nees_bounds
+
+    series = pd.read_parquet(series_path)
+    runs = int(nees["runs"])
+    fig, (a, b) = plt.subplots(2, 1, figsize=(9, 5.5), sharex=True)
+    for vid, g in series.groupby("vehicle_id", sort=True):
+        label = f" {vid}" if series["vehicle_id"].nunique() > 1 else ""
+        a.plot(g["t_s"], g["average_nees"], lw=0.8, label=f"average NEES{label}")
+        for axis, colour in (("north", "#4477aa"), ("east", "#228833"), ("down", "#aa3377")):
+            b.plot(g["t_s"], g[f"average_z2_{axis}"], lw=0.7, color=colour, label=f"{axis}{label}")
+    a.axhspan(nees["bound_low"], nees["bound_high"], color="#cccccc", alpha=0.5, label="95 % band (3 dof)")
+    lo1, hi1 = average_nees_bounds(1, runs)
+    b.axhspan(lo1, hi1, color="#cccccc", alpha=0.5, label="95 % band (1 dof)")
+    a.set_ylabel(f"average NEES ({runs} runs)")
+    b.set_ylabel("per axis (1 dof)")
+    b.set_xlabel("t (s)")
+    for ax in (a, b):
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, loc="upper right")
+    title = f"average position NEES over {runs} runs against time, and per axis"
+    return f'<figure><img alt="{html.escape(title)}" src="data:image/png;base64,{_png(fig)}"><figcaption>{html.escape(title)}</figcaption></figure>'
 
 
 def _chance_html(nees: dict[str, Any]) -> str:

@@ -99,3 +99,29 @@ def test_batch_report_states_the_chance_figures(tmp_path):
     assert f"inside at most this batch's share in {100 * res.chance_p_value:.1f} % of them" in html
     # Without the chance figures (uneven record times) the sentence is left out.
     assert "consistent filter whose errors" not in _nees_html({**res.as_dict(), "chance_p_value": float("nan")})
+
+
+def test_series_gives_the_average_nees_and_its_axes(tmp_path):
+    res = _batch(tmp_path, 1.0, 0.0, runs=5)
+    s = res.series
+    assert list(s.columns) == ["vehicle_id", "t_s", "average_nees", "average_z2_north", "average_z2_east", "average_z2_down"]
+    assert len(s) == res.samples and (s["vehicle_id"] == "uav0").all()
+    assert np.allclose(s["average_nees"], s[["average_z2_north", "average_z2_east", "average_z2_down"]].sum(axis=1))
+    assert res.mean_of_average == pytest.approx(s["average_nees"].mean())
+    assert "series" not in res.as_dict()
+
+
+def test_ekf_batch_writes_the_nees_series_and_plots_it(tmp_path):
+    """A real batch of an EKF scenario: nees_position.parquet beside summary.json, and the
+    report's consistency section carries the NEES-against-time figure."""
+    import json
+
+    from testbench.batch import BatchPlan, run_batch
+
+    scenario = str(Path(__file__).resolve().parents[2] / "scenarios" / "ins_only_800m.yaml")
+    out = tmp_path / "mc"
+    run_batch(BatchPlan(scenario, 2, 1, ("duration_s=4",), ()), out, workers=1, report=True)
+    series = pd.read_parquet(out / "nees_position.parquet")
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["nees_position"]["samples"] == len(series) > 30
+    assert "average position NEES over 2 runs against time" in (out / "report.html").read_text()
