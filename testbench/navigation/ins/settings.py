@@ -59,7 +59,10 @@ class DragAiding(ParamsModel):
     sigma_mps2: float = pydantic.Field(0.05, gt=0)
     """Error of the averaged specific force against the model, per axis: mu changes with the
     rotor speeds (+-5 % for +-10 % thrust), i.e. ~0.07 m/s^2 at 4 m/s in a manoeuvre, far less
-    in steady flight; the accelerometers' white noise over 0.2 s is a few mm/s^2."""
+    in steady flight; the accelerometers' white noise over 0.2 s is a few mm/s^2. In gentle
+    formation flight (paper_swarm_relnav: 0.25 m/s^2, 0.5 deg/s turns) the innovations are
+    0.008-0.011 / 0.004-0.006 m/s^2 RMS in body x / y, and that scenario sets 0.03 (0.02 and
+    0.01 left the position overconfident: the error is not white at 5 Hz)."""
     scale_sigma: float = pydantic.Field(0.006, ge=0)
     """Steady-state sigma of the slow part of mu's error, a scale (1 + s) the filter estimates
     (error_model, dsd): the part of the model error that lasts for tens of seconds, which fused
