@@ -15,6 +15,9 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from testbench.navigation.ins.consistency import average_nees_bounds  # noqa: E402
 
 # Metrics worth a figure when present (the summary table lists every metric).
 _HEADLINE = (
@@ -110,10 +113,6 @@ def _nees_figure_html(series_path: Path, nees: dict[str, Any] | None) -> str:
     without the series (batch.consistency.NeesConsistency.series)."""
     if not nees or not series_path.is_file():
         return ""
-    import pandas as pd
-
-    from testbench.navigation.ins.consistency import average_nees_bounds
-
     series = pd.read_parquet(series_path)
     runs = int(nees["runs"])
     fig, (a, b) = plt.subplots(2, 1, figsize=(9, 5.5), sharex=True)

@@ -128,16 +128,10 @@ class AreaMatcherBase(SceneMatcher):
         consensus_model: Literal["affine", "homography"] = "affine"
         """The map ortho -> map the tiles must agree with (tiles.py). homography follows the
         1 / cos^2 pattern an attitude error of the prior leaves in a wide view, which the
-        affine's inlier gate cuts off: on 20 paper_ismn_800m frames the fix's lean on the
-        prior tilt drops from 200-275 m/rad to 36-41 (declared 17-26), and a 600 s run's
-        denied max from 1.72 to 0.94 m (nav mean 0.46 -> 0.38 m; lowalt_ismn_150m smooth mean
-        0.18 -> 0.08 m; naip_ismn_800m 1.52 -> 1.56 m). But the filter's fix error
-        model, calibrated with the affine, is then cautious once GNSS is gone (100-run NEES
-        share 0.64 against 0.88), and no one shared-error setting fits both phases (0.16 /
-        0.075 m: 0.70, overconfident while GNSS is on). In closed loop the fixes still lean on
-        the filter's tilt error by about 100-110 m/rad (affine 290-310, declared about 20),
-        hardly on its heading. Default affine until that lean is declared or removed and the
-        fix error model recalibrated."""
+        affine's inlier gate cuts off: the fix leans far less on the prior tilt and its errors
+        are smaller, but the filter's fix error model, calibrated with the affine, is then
+        cautious once GNSS is gone. Default affine until that is recalibrated; the figures are
+        in docs/measurements.md (the tilt lean and the homography consensus)."""
 
     def __init__(self, params=None, *, ctx=None):
         self.p = params if params is not None else self.Params()

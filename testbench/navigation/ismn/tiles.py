@@ -206,7 +206,8 @@ def _similarity_normaliser(p):
 
 def _fit_homography(o, m, w):
     """Weighted normalised DLT homography (3, 3), H[2, 2] = 1, with m ~ H [o, 1] (Hartley and
-    Zisserman 2004, alg. 4.2); None when degenerate."""
+    Zisserman 2004, alg. 4.2); None when degenerate. Written here rather than
+    cv2.findHomography because the IRLS needs per-tile weights, which OpenCV does not take."""
     To, Tm = _similarity_normaliser(o), _similarity_normaliser(m)
     on = o @ To[:2, :2].T + To[:2, 2]
     mn = m @ Tm[:2, :2].T + Tm[:2, 2]
@@ -257,7 +258,10 @@ def tile_consensus(t: TileMatches, consensus_px: float = 3.0, inlier_px: float =
                 if H is None:
                     break
                 r = np.hypot(*(m - _apply(H, o)).T)
-                H = fit(o, m, ww / (1.0 + (r / inlier_px) ** 2))
+                H_next = fit(o, m, ww / (1.0 + (r / inlier_px) ** 2))
+                if H_next is None:  # keep the last good fit
+                    break
+                H = H_next
             if H is None:  # degenerate layout: the affine (always defined) instead
                 H, kind = _fit_affine(o, m, ww), "affine"
             return H, kind, _apply(H, t.ortho_px)
