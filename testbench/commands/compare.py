@@ -68,6 +68,7 @@ def run(args: argparse.Namespace) -> int:
     if names[0] != names[1]:
         print(f"note: different scenarios ({names[0]} / {names[1]}): the figures may not be comparable", file=sys.stderr)
     if kinds[0] == "run":
+        _note_numerics(base, new)
         changes = cmp.compare_runs(_flat_metrics(base), _flat_metrics(new), args.rel_tol, args.only, ignore)
         head = f"runs: {base} -> {new} (a change counts above {args.rel_tol:.0%} of the base value)"
     else:
@@ -89,6 +90,24 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         Path(args.json).write_text(json.dumps([c.to_dict() for c in changes], indent=1, allow_nan=False) + "\n", encoding="utf-8")
     return EXIT_THRESHOLD_FAILED if bad else 0
+
+
+def _note_numerics(base: Path, new: Path) -> None:
+    """Say on stderr when two runs were made under different code or numerics: then even the
+    same scenario and seed fly different realisations (testbench.sim.provenance), and a change
+    in a single-event figure (a maximum) may be chance rather than the code."""
+    from testbench.sim.provenance import numerics_differences
+
+    envs = []
+    for folder in (base, new):
+        try:
+            envs.append(json.loads((folder / "run.json").read_text(encoding="utf-8")).get("environment"))
+        except (OSError, ValueError, AttributeError):
+            envs.append(None)
+    diffs = numerics_differences(*envs)
+    if diffs:
+        print("note: the runs differ in " + "; ".join(diffs) + ": under the same seed their records are "
+              "bit-identical only when code, library builds and CPU features are the same", file=sys.stderr)
 
 
 def _flat_metrics(folder: Path) -> dict:

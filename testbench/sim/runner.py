@@ -28,6 +28,7 @@ from testbench.core.errors import (
 from testbench.core.interfaces import GeodeticOrigin
 from testbench.core.rng import RngStreams
 from testbench.sim.engine import Engine, EngineResult
+from testbench.sim.provenance import environment
 from testbench.sim.recorder import Recorder
 from testbench.sim.vehicle import build_vehicle, decimation
 from testbench.sim.world_runtime import RunWorld
@@ -187,6 +188,8 @@ def _run_info(loaded: LoadedScenario, engine: Engine, world: RunWorld, result: E
         "thresholds": {k: v.model_dump(exclude_none=True) for k, v in scn.thresholds.items()},
         "gnss_denied_windows": {v.id: _gnss_denied_windows(v.spec, result.sim_time_s) for v in engine.vehicles},
         "aid_counters": _aid_counters(engine),
+        # The code, library builds and CPU features the record's bits depend on (provenance).
+        "environment": environment(),
     }
 
 

@@ -33,6 +33,8 @@ def test_scenario_smoke(path, tmp_path, monkeypatch):
         assert len(tum.read_text().splitlines()) >= 2
     # Every relnav aid's event counters reach run.json (frames processed, tracks born, ...).
     run_info = json.loads((out / "run.json").read_text())
+    # ... and what its bits depend on besides the seed (testbench.sim.provenance).
+    assert run_info["environment"]["packages"]["jsbsim"] and run_info["environment"]["python"]
     relnav = [c["RelnavAid"] for c in run_info["aid_counters"].values() if "RelnavAid" in c]
     if path.stem.startswith(("swarm", "paper_swarm")):
         assert relnav and all(c["frames"] > 0 for c in relnav)

@@ -1,0 +1,54 @@
+"""run.json's environment: what a record's bits depend on besides the scenario and seed."""
+
+import copy
+import json
+
+import numpy as np
+import pytest
+
+from testbench.cli import main
+from testbench.sim.provenance import environment, numerics_differences
+
+
+def test_environment_names_the_numerical_builds_of_this_process():
+    env = environment()
+    assert env["packages"]["numpy"] == np.__version__
+    assert env["packages"]["jsbsim"] and env["packages"]["opencv-python-headless"]
+    assert env["python"].count(".") == 2
+    # numpy's run-time SIMD dispatch: the groups this CPU gets (x86: X86_V2 / V3 / V4 ...)
+    assert env["numpy_simd"] is None or isinstance(env["numpy_simd"], list)
+    json.dumps(env)  # it goes into run.json as it is
+
+
+def test_numerics_differences_names_what_changes_the_numbers():
+    a = environment()
+    assert numerics_differences(a, copy.deepcopy(a)) in ([], ["code: uncommitted changes in the base and the new"])
+    b = copy.deepcopy(a)
+    b["numpy_simd"] = ["X86_V3", "X86_V4"]
+    b["packages"]["opencv-python-headless"] = "4.8.0.76"
+    b["testbench"] = {"version": "0.1.0", "git_commit": "f" * 40, "git_dirty": False}
+    diffs = numerics_differences(a, b)
+    assert any(d.startswith("numpy CPU features") for d in diffs)
+    assert any(d.startswith("opencv-python-headless") and "4.8.0.76" in d for d in diffs)
+    assert any(d.startswith("code: commit") for d in diffs)
+    assert numerics_differences(None, a) == ["environment not recorded"]
+
+
+def _run_folder(path, environment_):
+    path.mkdir()
+    (path / "metrics.json").write_text(json.dumps({"nav": {"horizontal_error_m": {"mean": 1.0}}}))
+    (path / "run.json").write_text(json.dumps({"scenario_name": "s", "environment": environment_}))
+    return str(path)
+
+
+@pytest.mark.parametrize("change, noted", [(None, False), ("numpy_simd", True)])
+def test_compare_notes_runs_made_under_different_numerics(tmp_path, capsys, change, noted):
+    env = environment()
+    env["testbench"]["git_dirty"] = False  # the test's own checkout may hold uncommitted changes
+    other = copy.deepcopy(env)
+    if change:
+        other[change] = ["X86_V4"]
+    a, b = _run_folder(tmp_path / "a", env), _run_folder(tmp_path / "b", other)
+    assert main(["compare", a, b]) == 0
+    err = capsys.readouterr().err
+    assert ("numpy CPU features" in err) is noted
