@@ -12,6 +12,8 @@ import sys
 import time
 from datetime import datetime, timezone
 
+from testbench.sim.provenance import cpu_model, environment
+
 log = logging.getLogger(__name__)
 
 # (group, module with run_benchmarks() -> dict[str, float])
@@ -53,9 +55,11 @@ def run(args: argparse.Namespace) -> int:
             print(f"  {k:45s} {v:12.4g}")
     meta = {
         "date_utc": datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M"),
-        "machine": f"{platform.machine()} {platform.processor() or ''} {_cpu_model()}".strip(),
+        "machine": f"{platform.machine()} {platform.processor() or ''} {cpu_model() or ''}".strip(),
         "cores": _cores(),
         "python": platform.python_version(),
+        # Library builds and CPU features: what else besides the code a figure depends on.
+        "environment": environment(),
     }
     if args.json_file:
         with open(args.json_file, "w", encoding="utf-8") as fh:
@@ -69,12 +73,3 @@ def _cores() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
-def _cpu_model() -> str:
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8") as fh:
-            for line in fh:
-                if line.startswith("model name"):
-                    return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return ""

@@ -48,7 +48,7 @@ def environment() -> dict[str, Any]:
         "testbench": {"version": __version__, "git_commit": commit, "git_dirty": dirty},
         "python": sys.version.split()[0],
         "platform": platform.platform(),
-        "cpu": _cpu_model(),
+        "cpu": cpu_model(),
         "cpu_simd_flags": _cpu_simd_flags(),
         "packages": packages,
         "numpy_simd": _numpy_simd(np),
@@ -104,7 +104,8 @@ def _git_state(root: Path) -> tuple[str | None, bool | None]:
     return commit or None, bool(status.strip())
 
 
-def _cpu_model() -> str | None:
+def cpu_model() -> str | None:
+    """The CPU's model name (Linux /proc/cpuinfo; elsewhere platform.processor()), or None."""
     try:
         with open("/proc/cpuinfo", encoding="utf-8") as fh:
             for line in fh:
@@ -156,4 +157,4 @@ def _opencv_features() -> str | None:
         return None
 
 
-__all__ = ["environment", "numerics_differences"]
+__all__ = ["cpu_model", "environment", "numerics_differences"]

@@ -52,3 +52,11 @@ def test_compare_notes_runs_made_under_different_numerics(tmp_path, capsys, chan
     assert main(["compare", a, b]) == 0
     err = capsys.readouterr().err
     assert ("numpy CPU features" in err) is noted
+
+
+def test_bench_json_says_which_machine_and_builds_made_its_figures(tmp_path):
+    out = tmp_path / "bench.json"
+    assert main(["bench", "--only", "engine", "--json", str(out)]) == 0
+    data = json.loads(out.read_text())
+    assert data["engine.overhead_ratio"] > 0
+    assert data["meta"]["environment"]["packages"]["numpy"] == np.__version__
