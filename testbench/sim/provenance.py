@@ -1,11 +1,12 @@
 """Where a run was made: the code, the numerical libraries and the CPU features they use.
 
 Why: a run is bit-identical under its seed only for the same code, the same library builds
-and the same CPU features. numpy and OpenCV pick vectorised kernels by the CPU at run time
-(numpy's AVX-512 sin, cos, exp and log round some last bits differently from its AVX2 ones;
-OpenBLAS's DYNAMIC_ARCH build picks its kernels the same way), and a closed-loop run fed a
-different last bit flies another realisation of the same scenario: the same statistics, not
-the same numbers. `environment()` is written to run.json so that two records that differ can
+and the same CPU features. OpenBLAS (numpy's and scipy's BLAS, a DYNAMIC_ARCH build) and
+OpenCV pick vectorised kernels by the CPU at run time, and numpy has its own AVX-512 versions of
+sin, cos, exp and log; kernels for other CPUs round some last bits differently, and a
+closed-loop run fed a different last bit flies another realisation of the same scenario: the
+same statistics, not the same numbers (measured in the README, "Conventions and
+determinism"). `environment()` is written to run.json so that two records that differ can
 be told apart from a change of code; `numerics_differences` lists what two runs' environments
 differ in that can change the numbers (`testbench compare` prints it).
 """
@@ -31,8 +32,8 @@ _NUMERIC_ENV = ("NPY_DISABLE_CPU_FEATURES", "NPY_ENABLE_CPU_FEATURES", "OPENBLAS
 def environment() -> dict[str, Any]:
     """{"testbench": {"version", "git_commit", "git_dirty"}, "python", "platform", "cpu",
     "cpu_simd_flags": [...], "packages": {name: version}, "numpy_simd": [...], "blas": str,
-    "opencv_cpu_features": str, "env": {VAR: value}} of this process. Fields that cannot be read are None, never an error:
-    a run must not fail for want of its provenance."""
+    "opencv_cpu_features": str, "env": {VAR: value}} of this process. Fields that cannot be
+    read are None, never an error: a run must not fail for want of its provenance."""
     import numpy as np
 
     from testbench import __version__
@@ -62,8 +63,8 @@ def numerics_differences(a: Mapping[str, Any] | None, b: Mapping[str, Any] | Non
     """What two environments (as environment() returns, e.g. from two run.json files) differ in
     that can change a run's numbers: the code's commit (or uncommitted changes), a numerical
     package's version, the CPU (model and vector flags), numpy's or OpenCV's CPU features, the
-    BLAS build, or the environment variables above. [] when nothing differs; ["environment not recorded"] when either is
-    missing (runs made before run.json carried it)."""
+    BLAS build, or the environment variables above. [] when nothing differs; ["environment not
+    recorded"] when either is missing (runs made before run.json carried it)."""
     if not a or not b:
         return ["environment not recorded"]
     out = []
@@ -78,8 +79,9 @@ def numerics_differences(a: Mapping[str, Any] | None, b: Mapping[str, Any] | Non
         if pa.get(name) != pb.get(name):
             out.append(f"{name} {pa.get(name)} / {pb.get(name)}")
     # The CPU model too: OpenBLAS picks its kernels by it, beyond the flags.
-    for key, label in (("cpu", "CPU"), ("cpu_simd_flags", "CPU SIMD flags"), ("numpy_simd", "numpy CPU features"), ("blas", "BLAS"),
-                       ("opencv_cpu_features", "OpenCV CPU features"), ("env", "environment variables")):
+    for key, label in (("cpu", "CPU"), ("cpu_simd_flags", "CPU SIMD flags"), ("numpy_simd", "numpy CPU features"),
+                       ("blas", "BLAS"), ("opencv_cpu_features", "OpenCV CPU features"),
+                       ("env", "environment variables")):
         if a.get(key) != b.get(key):
             out.append(f"{label}: {a.get(key)} / {b.get(key)}")
     return out
