@@ -39,6 +39,7 @@ def environment() -> dict[str, Any]:
     from testbench import __version__
 
     commit, dirty = _git_state(Path(__file__).resolve().parents[2])
+    np_config = _numpy_config(np)
     packages = {}
     for name in _NUMERIC_PACKAGES:
         try:
@@ -52,8 +53,8 @@ def environment() -> dict[str, Any]:
         "cpu": cpu_model(),
         "cpu_simd_flags": _cpu_simd_flags(),
         "packages": packages,
-        "numpy_simd": _numpy_simd(np),
-        "blas": _blas(np),
+        "numpy_simd": _numpy_simd(np_config),
+        "blas": _blas(np_config),
         "opencv_cpu_features": _opencv_features(),
         "env": {k: os.environ[k] for k in _NUMERIC_ENV if k in os.environ},
     }
@@ -108,44 +109,48 @@ def _git_state(root: Path) -> tuple[str | None, bool | None]:
 
 def cpu_model() -> str | None:
     """The CPU's model name (Linux /proc/cpuinfo; elsewhere platform.processor()), or None."""
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8") as fh:
-            for line in fh:
-                if line.startswith("model name"):
-                    return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or None
+    return _cpuinfo().get("model name") or platform.processor() or None
 
 
 def _cpu_simd_flags() -> list[str] | None:
     """The CPU's vector-instruction flags (Linux /proc/cpuinfo: sse4_2, avx, avx2, fma,
     avx512*), the ones the libraries' kernel choice turns on."""
+    flags = _cpuinfo().get("flags")
+    return None if flags is None else sorted(f for f in flags.split() if f.startswith(("sse4", "avx", "fma", "f16c")))
+
+
+def _cpuinfo() -> dict[str, str]:
+    """The first processor's fields of /proc/cpuinfo ({} where there is none)."""
+    info: dict[str, str] = {}
     try:
         with open("/proc/cpuinfo", encoding="utf-8") as fh:
             for line in fh:
-                if line.startswith("flags"):
-                    flags = line.split(":", 1)[1].split()
-                    return sorted(f for f in flags if f.startswith(("sse4", "avx", "fma", "f16c")))
+                if not line.strip():
+                    break  # the end of the first processor's block
+                key, _, value = line.partition(":")
+                info.setdefault(key.strip(), value.strip())
     except OSError:
         pass
-    return None
+    return info
 
 
-def _numpy_simd(np) -> list[str] | None:
-    """The CPU feature groups numpy dispatches to on this machine (its build's "found" list)."""
+def _numpy_config(np) -> dict:
+    """numpy's build and run-time configuration (np.show_config's dictionary; {} if absent)."""
     try:
-        return list(np.show_config(mode="dicts")["SIMD Extensions"]["found"])
+        return np.show_config(mode="dicts") or {}
     except Exception:  # noqa: BLE001 -- the layout of show_config is not a stable API
-        return None
+        return {}
 
 
-def _blas(np) -> str | None:
-    try:
-        blas = np.show_config(mode="dicts")["Build Dependencies"]["blas"]
-        return f"{blas.get('name')} {blas.get('version')}"
-    except Exception:  # noqa: BLE001 -- as above
-        return None
+def _numpy_simd(config: dict) -> list[str] | None:
+    """The CPU feature groups numpy dispatches to on this machine (its build's "found" list)."""
+    found = config.get("SIMD Extensions", {}).get("found")
+    return None if found is None else list(found)
+
+
+def _blas(config: dict) -> str | None:
+    blas = config.get("Build Dependencies", {}).get("blas")
+    return None if not blas else f"{blas.get('name')} {blas.get('version')}"
 
 
 def _opencv_features() -> str | None:
