@@ -39,7 +39,7 @@ def environment() -> dict[str, Any]:
     from testbench import __version__
 
     commit, dirty = _git_state(Path(__file__).resolve().parents[2])
-    np_config = _numpy_config(np)
+    np_config, cpu = _numpy_config(np), _cpuinfo()
     packages = {}
     for name in _NUMERIC_PACKAGES:
         try:
@@ -50,8 +50,8 @@ def environment() -> dict[str, Any]:
         "testbench": {"version": __version__, "git_commit": commit, "git_dirty": dirty},
         "python": sys.version.split()[0],
         "platform": platform.platform(),
-        "cpu": cpu_model(),
-        "cpu_simd_flags": _cpu_simd_flags(),
+        "cpu": cpu_model(cpu),
+        "cpu_simd_flags": _cpu_simd_flags(cpu),
         "packages": packages,
         "numpy_simd": _numpy_simd(np_config),
         "blas": _blas(np_config),
@@ -107,15 +107,16 @@ def _git_state(root: Path) -> tuple[str | None, bool | None]:
     return commit or None, bool(status.strip())
 
 
-def cpu_model() -> str | None:
-    """The CPU's model name (Linux /proc/cpuinfo; elsewhere platform.processor()), or None."""
-    return _cpuinfo().get("model name") or platform.processor() or None
+def cpu_model(cpuinfo: dict[str, str] | None = None) -> str | None:
+    """The CPU's model name (Linux /proc/cpuinfo, or its fields already read; elsewhere
+    platform.processor()), or None."""
+    return (_cpuinfo() if cpuinfo is None else cpuinfo).get("model name") or platform.processor() or None
 
 
-def _cpu_simd_flags() -> list[str] | None:
+def _cpu_simd_flags(cpuinfo: dict[str, str]) -> list[str] | None:
     """The CPU's vector-instruction flags (Linux /proc/cpuinfo: sse4_2, avx, avx2, fma,
     avx512*), the ones the libraries' kernel choice turns on."""
-    flags = _cpuinfo().get("flags")
+    flags = cpuinfo.get("flags")
     return None if flags is None else sorted(f for f in flags.split() if f.startswith(("sse4", "avx", "fma", "f16c")))
 
 
