@@ -12,7 +12,7 @@ import sys
 import time
 from datetime import datetime, timezone
 
-from testbench.sim.provenance import cpu_model, environment
+from testbench.sim.provenance import environment
 
 log = logging.getLogger(__name__)
 
@@ -53,13 +53,14 @@ def run(args: argparse.Namespace) -> int:
         print(f"[{group}] {time.perf_counter() - t0:.1f} s", file=sys.stderr)
         for k, v in sorted(out.items()):
             print(f"  {k:45s} {v:12.4g}")
+    # Library builds and CPU features: what else besides the code a figure depends on.
+    env = environment()
     meta = {
         "date_utc": datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M"),
-        "machine": f"{platform.machine()} {platform.processor() or ''} {cpu_model() or ''}".strip(),
+        "machine": f"{platform.machine()} {platform.processor() or ''} {env['cpu'] or ''}".strip(),
         "cores": _cores(),
         "python": platform.python_version(),
-        # Library builds and CPU features: what else besides the code a figure depends on.
-        "environment": environment(),
+        "environment": env,
     }
     if args.json_file:
         with open(args.json_file, "w", encoding="utf-8") as fh:

@@ -43,12 +43,16 @@ def _kind(folder: Path) -> str:
                      "expected the --out folder of `testbench run` or `testbench montecarlo`")
 
 
-def _scenario_name(folder: Path, kind: str) -> str | None:
-    f = folder / ("batch.json" if kind == "batch" else "run.json")
+def _meta(folder: Path, kind: str) -> dict:
+    """The folder's batch.json or run.json ({} when missing or not a JSON object)."""
     try:
-        meta = json.loads(f.read_text(encoding="utf-8"))
+        meta = json.loads((folder / ("batch.json" if kind == "batch" else "run.json")).read_text(encoding="utf-8"))
     except (OSError, ValueError):
-        return None
+        return {}
+    return meta if isinstance(meta, dict) else {}
+
+
+def _scenario_name(meta: dict, kind: str) -> str | None:
     return Path(str(meta.get("scenario", ""))).stem if kind == "batch" else meta.get("scenario_name")
 
 
@@ -64,11 +68,12 @@ def run(args: argparse.Namespace) -> int:
     if kinds[0] != kinds[1]:
         raise InputError(f"{base} is a {kinds[0]} folder but {new} is a {kinds[1]} folder; expected two of the same kind")
     ignore = list(args.ignore) + ([] if args.details else list(DETAIL_PATTERNS))
-    names = (_scenario_name(base, kinds[0]), _scenario_name(new, kinds[0]))
+    metas = (_meta(base, kinds[0]), _meta(new, kinds[0]))
+    names = (_scenario_name(metas[0], kinds[0]), _scenario_name(metas[1], kinds[0]))
     if names[0] != names[1]:
         print(f"note: different scenarios ({names[0]} / {names[1]}): the figures may not be comparable", file=sys.stderr)
     if kinds[0] == "run":
-        _note_numerics(base, new)
+        _note_numerics(metas[0].get("environment"), metas[1].get("environment"))
         changes = cmp.compare_runs(_flat_metrics(base), _flat_metrics(new), args.rel_tol, args.only, ignore)
         head = f"runs: {base} -> {new} (a change counts above {args.rel_tol:.0%} of the base value)"
     else:
@@ -92,19 +97,14 @@ def run(args: argparse.Namespace) -> int:
     return EXIT_THRESHOLD_FAILED if bad else 0
 
 
-def _note_numerics(base: Path, new: Path) -> None:
-    """Say on stderr when two runs were made under different code or numerics: then even the
-    same scenario and seed fly different realisations (testbench.sim.provenance), and a change
-    in a single-event figure (a maximum) may be chance rather than the code."""
+def _note_numerics(base_env: dict | None, new_env: dict | None) -> None:
+    """Say on stderr when two runs (their run.json `environment`) were made under different code
+    or numerics: then even the same scenario and seed fly different realisations
+    (testbench.sim.provenance), and a change in a single-event figure (a maximum) may be chance
+    rather than the code."""
     from testbench.sim.provenance import numerics_differences
 
-    envs = []
-    for folder in (base, new):
-        try:
-            envs.append(json.loads((folder / "run.json").read_text(encoding="utf-8")).get("environment"))
-        except (OSError, ValueError, AttributeError):
-            envs.append(None)
-    diffs = numerics_differences(*envs)
+    diffs = numerics_differences(base_env, new_env)
     if diffs:
         print("note: the runs differ in " + "; ".join(diffs) + ": under the same seed their records are "
               "bit-identical only when code, library builds and CPU features are the same", file=sys.stderr)
