@@ -50,7 +50,7 @@ def environment() -> dict[str, Any]:
         "testbench": {"version": __version__, "git_commit": commit, "git_dirty": dirty},
         "python": sys.version.split()[0],
         "platform": platform.platform(),
-        "cpu": cpu_model(cpu),
+        "cpu": _cpu_model(cpu),
         "cpu_simd_flags": _cpu_simd_flags(cpu),
         "packages": packages,
         "numpy_simd": _numpy_simd(np_config),
@@ -107,10 +107,9 @@ def _git_state(root: Path) -> tuple[str | None, bool | None]:
     return commit or None, bool(status.strip())
 
 
-def cpu_model(cpuinfo: dict[str, str] | None = None) -> str | None:
-    """The CPU's model name (Linux /proc/cpuinfo, or its fields already read; elsewhere
-    platform.processor()), or None."""
-    return (_cpuinfo() if cpuinfo is None else cpuinfo).get("model name") or platform.processor() or None
+def _cpu_model(cpuinfo: dict[str, str]) -> str | None:
+    """The CPU's model name (from /proc/cpuinfo's fields; elsewhere platform.processor()), or None."""
+    return cpuinfo.get("model name") or platform.processor() or None
 
 
 def _cpu_simd_flags(cpuinfo: dict[str, str]) -> list[str] | None:
@@ -165,4 +164,4 @@ def _opencv_features() -> str | None:
         return None
 
 
-__all__ = ["cpu_model", "environment", "numerics_differences"]
+__all__ = ["environment", "numerics_differences"]
