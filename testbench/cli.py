@@ -10,8 +10,20 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import os
 import sys
 import traceback
+
+# numpy asks the kernel for transparent huge pages (madvise) on every array of 4 MB or more.
+# A run allocates and frees such arrays every frame (camera frames, ortho views, remap tables),
+# and each new one is then faulted in and zeroed 2 MB at a time: 14 % of a paper_ismn_800m
+# run's CPU samples (perf: clear_page_erms), its system time 3.4-4.2 s against 1.7 s without,
+# its real-time factor 5.4-5.7 against 6.0-6.9 (docs/measurements.md, "Scene matching,
+# latency and speed"). numpy reads the variable when it is imported, so it is set here,
+# before any subcommand imports numpy; a value the user set is kept. It changes no number
+# (the pages' size, not the arrays' addresses or contents). numpy issue 31590 discusses the
+# same advice's costs.
+os.environ.setdefault("NUMPY_MADVISE_HUGEPAGE", "0")
 
 from testbench import __version__
 from testbench.core.errors import EXIT_INTERNAL, InputError, TestbenchError

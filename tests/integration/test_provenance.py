@@ -2,6 +2,9 @@
 
 import copy
 import json
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -60,3 +63,16 @@ def test_bench_json_says_which_machine_and_builds_made_its_figures(tmp_path):
     data = json.loads(out.read_text())
     assert data["engine.overhead_ratio"] > 0
     assert data["meta"]["environment"]["packages"]["numpy"] == np.__version__
+
+
+@pytest.mark.parametrize("user_value, expected", [(None, "False"), ("1", "True")])
+def test_cli_turns_numpys_huge_page_advice_off_unless_the_user_set_it(user_value, expected):
+    # The command's import must come before numpy's (numpy reads the variable once, at import),
+    # so this runs in a fresh interpreter: testbench.cli first, as the console script does.
+    env = {k: v for k, v in os.environ.items() if k != "NUMPY_MADVISE_HUGEPAGE"}
+    if user_value is not None:
+        env["NUMPY_MADVISE_HUGEPAGE"] = user_value
+    code = ("import testbench.cli, numpy; "
+            "print(numpy._core.multiarray._get_madvise_hugepage())")
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == expected
