@@ -127,9 +127,21 @@ class IsmnPipeline:
         height = ground_down - centre[2]
         fp = footprint_bounds(centre, R_nc, self.camera, ground_down, self.ortho.max_off_nadir_rad)
 
+        # The frame thumbnail is for the report only: made after the clock stops (1-2 ms of
+        # INTER_AREA resizing), so that the latency is the pipeline's, from ortho to fix.
+        prepared = []  # the prepared (grey, downsampled) frame, once there is one
+
+        def thumbnail():
+            if not (p.keep_images and prepared):
+                return {}
+            small = prepared[0]
+            tw = p.thumb_px
+            th = max(1, round(tw * small.shape[0] / small.shape[1]))
+            return {"frame_thumb": cv2.resize(small, (tw, th), interpolation=cv2.INTER_AREA)}
+
         def fail(reason, **kw):
             lat["total"] = sum(lat.values())
-            return None, IsmnDiagnostics(t_s, dict(lat), reason=reason, **kw)
+            return None, IsmnDiagnostics(t_s, dict(lat), reason=reason, **kw, **thumbnail())
 
         if height <= 0 or fp is None:
             lat["window"] = 1e3 * (time.perf_counter() - t0)
@@ -163,6 +175,7 @@ class IsmnPipeline:
             return fail("search window off the reference map", window=win)
 
         small, K_s = self.ortho.prepare(frame_image, nadir_gsd_m(self.camera, height) / g)
+        prepared.append(small)
         of = self.ortho.rectify(small, K_s, centre, R_nc, mapw.north0_m - r0 * g, mapw.east0_m + c0 * g, g,
                                 (Ho, Wo), (c0, r0), ground_down, height_fn)
         t2 = time.perf_counter()
@@ -175,10 +188,7 @@ class IsmnPipeline:
         lat["match"] = 1e3 * (t3 - t2)
         keep = dict(window=win)
         if p.keep_images:
-            tw = p.thumb_px
-            th = max(1, round(tw * small.shape[0] / small.shape[1]))
-            keep.update(ortho=of.image, ortho_valid=of.valid, map_window=map_grey,
-                        frame_thumb=cv2.resize(small, (tw, th), interpolation=cv2.INTER_AREA))
+            keep.update(ortho=of.image, ortho_valid=of.valid, map_window=map_grey)
         if res is None:
             return fail("no match", **keep)
         off_m = np.array([-res.offset_px[1] * g, res.offset_px[0] * g])  # (north, east)
@@ -230,4 +240,4 @@ class IsmnPipeline:
         fix = PositionFix(float(t_s), pos_fix, cov, quality, "ismn",
                           att_sensitivity_m_per_rad=sol.att_sensitivity_m_per_rad if coupled else None,
                           cov_given_att_ned_m2=sol.cov_centre_given_att_m2 + floor if coupled else None)
-        return fix, IsmnDiagnostics(t_s, dict(lat), **{**keep, "peak_quality": quality})
+        return fix, IsmnDiagnostics(t_s, dict(lat), **{**keep, "peak_quality": quality}, **thumbnail())

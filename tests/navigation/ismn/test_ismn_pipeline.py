@@ -101,6 +101,9 @@ def test_wrong_map_gives_no_fix_or_low_quality(seasons, camera, mount, make_esti
     fix, diag = pipe.process(frame, 0.0, make_estimate(truth, [0.0, 0.0, 0.0]))
     assert fix is None or fix.quality < 0.15
     assert fix is None and diag.reason
+    # A failed attempt keeps its images for the report too (the thumbnail is made after the
+    # latency clock stops, on every path that prepared the frame).
+    assert diag.frame_thumb is not None and diag.frame_thumb.shape[1] == IsmnParams().thumb_px
 
 
 def test_relief_orthorectification_uses_elevation(camera, mount, make_estimate):
