@@ -129,12 +129,11 @@ class IsmnPipeline:
 
         # The frame thumbnail is for the report only: made after the clock stops (1-2 ms of
         # INTER_AREA resizing), so that the latency is the pipeline's, from ortho to fix.
-        prepared = []  # the prepared (grey, downsampled) frame, once there is one
+        small = None  # the prepared (grey, downsampled) frame, once there is one
 
         def thumbnail():
-            if not (p.keep_images and prepared):
+            if not p.keep_images or small is None:
                 return {}
-            small = prepared[0]
             tw = p.thumb_px
             th = max(1, round(tw * small.shape[0] / small.shape[1]))
             return {"frame_thumb": cv2.resize(small, (tw, th), interpolation=cv2.INTER_AREA)}
@@ -175,7 +174,6 @@ class IsmnPipeline:
             return fail("search window off the reference map", window=win)
 
         small, K_s = self.ortho.prepare(frame_image, nadir_gsd_m(self.camera, height) / g)
-        prepared.append(small)
         of = self.ortho.rectify(small, K_s, centre, R_nc, mapw.north0_m - r0 * g, mapw.east0_m + c0 * g, g,
                                 (Ho, Wo), (c0, r0), ground_down, height_fn)
         t2 = time.perf_counter()
