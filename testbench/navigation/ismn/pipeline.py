@@ -127,20 +127,9 @@ class IsmnPipeline:
         height = ground_down - centre[2]
         fp = footprint_bounds(centre, R_nc, self.camera, ground_down, self.ortho.max_off_nadir_rad)
 
-        # The frame thumbnail is for the report only: made after the clock stops (1-2 ms of
-        # INTER_AREA resizing), so that the latency is the pipeline's, from ortho to fix.
-        small = None  # the prepared (grey, downsampled) frame, once there is one
-
-        def thumbnail():
-            if not p.keep_images or small is None:
-                return {}
-            tw = p.thumb_px
-            th = max(1, round(tw * small.shape[0] / small.shape[1]))
-            return {"frame_thumb": cv2.resize(small, (tw, th), interpolation=cv2.INTER_AREA)}
-
         def fail(reason, **kw):
             lat["total"] = sum(lat.values())
-            return None, IsmnDiagnostics(t_s, dict(lat), reason=reason, **kw, **thumbnail())
+            return None, IsmnDiagnostics(t_s, dict(lat), reason=reason, **kw)
 
         if height <= 0 or fp is None:
             lat["window"] = 1e3 * (time.perf_counter() - t0)
@@ -186,7 +175,8 @@ class IsmnPipeline:
         lat["match"] = 1e3 * (t3 - t2)
         keep = dict(window=win)
         if p.keep_images:
-            keep.update(ortho=of.image, ortho_valid=of.valid, map_window=map_grey)
+            # The frame, not its thumbnail: IsmnDiagnostics makes that when the report asks.
+            keep.update(ortho=of.image, ortho_valid=of.valid, map_window=map_grey, frame=small, thumb_px=p.thumb_px)
         if res is None:
             return fail("no match", **keep)
         off_m = np.array([-res.offset_px[1] * g, res.offset_px[0] * g])  # (north, east)
@@ -238,4 +228,4 @@ class IsmnPipeline:
         fix = PositionFix(float(t_s), pos_fix, cov, quality, "ismn",
                           att_sensitivity_m_per_rad=sol.att_sensitivity_m_per_rad if coupled else None,
                           cov_given_att_ned_m2=sol.cov_centre_given_att_m2 + floor if coupled else None)
-        return fix, IsmnDiagnostics(t_s, dict(lat), **{**keep, "peak_quality": quality}, **thumbnail())
+        return fix, IsmnDiagnostics(t_s, dict(lat), **{**keep, "peak_quality": quality})

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import cv2
 import numpy as np
 
 
@@ -112,7 +113,9 @@ class IsmnDiagnostics:
 
     latency_ms: {"window", "ortho", "match", "pose", "total"} wall-clock milliseconds;
     ortho, ortho_valid: the orthorectified frame; map_window: the reference window (grey);
-    frame_thumb: the camera frame downsampled (grey uint8); peak_quality: matcher quality;
+    frame: the prepared camera frame (grey uint8, as orthorectified); frame_thumb: it
+    downsampled to thumb_px wide, made when read (the report keeps one example a minute, and
+    the resizing, 1-2 ms, must not be paid, or timed, for every frame); peak_quality: matcher quality;
     offset_px, offset_m (2,): matched shift (east, south) in map px / (north, east) in m;
     window: the SearchWindow; n_correspondences, n_inliers; reason: why no fix ("" if one);
     attempted: False when the pipeline declined the frame by design (waiting for the heading),
@@ -124,7 +127,8 @@ class IsmnDiagnostics:
     ortho: np.ndarray | None = None
     ortho_valid: np.ndarray | None = None
     map_window: np.ndarray | None = None
-    frame_thumb: np.ndarray | None = None
+    frame: np.ndarray | None = None
+    thumb_px: int = 320
     peak_quality: float = 0.0
     offset_px: np.ndarray | None = None
     offset_m: np.ndarray | None = None
@@ -133,3 +137,11 @@ class IsmnDiagnostics:
     n_inliers: int = 0
     reason: str = ""
     attempted: bool = True
+
+    @property
+    def frame_thumb(self) -> np.ndarray | None:
+        """The frame (H, W) downsampled to thumb_px wide (INTER_AREA), or None without a frame."""
+        if self.frame is None:
+            return None
+        h = max(1, round(self.thumb_px * self.frame.shape[0] / self.frame.shape[1]))
+        return cv2.resize(self.frame, (self.thumb_px, h), interpolation=cv2.INTER_AREA)
