@@ -17,7 +17,7 @@ yet (15 s: relnav.error_m.max 3.3 m against 0.4, mean 0.25 m against 0.15, the e
 0.950 against 0.99 (the track-frames' 0.991 pass), formation.error_m.rms 2.6 m against 2 in the
 leader's start-up; the arrowhead's lattice
 puts three or four vehicles on one line of sight, their LED blobs merge and part and tracks carry the wrong ID for a while;
-the mean is the vehicles' own heading error, about 1 mrad). It is a strict xfail, so the day
+the mean is the vehicles' own heading error, about 0.7 mrad RMS). It is a strict xfail, so the day
 it passes the suite says so and its marker must go (lowalt_ismn_150m's went on 2026-11-24: its
 consumer-grade quad now keeps the scene match, 300 s fix rate 0.995 where it had lost the match at
 60-85 s; the magnetic heading's tilt coupling alone gave 0.81, with the fixes' attitude coupling
