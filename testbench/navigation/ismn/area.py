@@ -64,11 +64,16 @@ class Pyramid:
     resize of its largest even crop (the 2 x 2 mean: a level costs a quarter of the one before,
     so a coarse level does not cost a pass over the full-resolution image); a reduced pixel is
     valid only when every pixel it covers is. pyr[l] -> (grey uint8, valid).
+
+    source: optional callable level -> (grey, valid) or None that may serve a level already
+    made elsewhere (a crop of a cached map's pyramid, MapWindowCache.pyramid_level): it must be
+    what this class would make.
     """
 
-    def __init__(self, img: np.ndarray, valid: np.ndarray, levels: int):
+    def __init__(self, img: np.ndarray, valid: np.ndarray, levels: int, source=None):
         self._levels: dict[int, tuple[np.ndarray, np.ndarray]] = {0: (img, valid)}
         self._v255: dict[int, np.ndarray] = {}
+        self._source = source
         self.n = levels + 1
 
     def __len__(self) -> int:
@@ -85,6 +90,10 @@ class Pyramid:
         if lev < 0 or lev >= self.n:
             raise IndexError(lev)
         out = self._levels.get(lev)
+        if out is None and self._source is not None:
+            out = self._source(lev)
+            if out is not None:
+                self._levels[lev] = out
         if out is None:
             img, _ = self[lev - 1]
             v255 = self._valid255(lev - 1)
@@ -96,9 +105,10 @@ class Pyramid:
         return out
 
 
-def pyramid(img: np.ndarray, valid: np.ndarray, levels: int) -> Pyramid:
-    """Pyramid(img, valid, levels) (see Pyramid)."""
-    return Pyramid(img, np.ascontiguousarray(valid, dtype=bool), levels)
+def pyramid(img: np.ndarray, valid: np.ndarray, levels: int, source=None) -> Pyramid:
+    """Pyramid(img, valid, levels, source) (see Pyramid); valid as bool (a view: no copy of a
+    cropped mask, which OpenCV reads row by row)."""
+    return Pyramid(img, np.asarray(valid, dtype=bool), levels, source)
 
 
 class AreaMatcherBase(SceneMatcher):
@@ -140,16 +150,18 @@ class AreaMatcherBase(SceneMatcher):
         p = self.p
         o_valid = prior.ortho_valid if prior.ortho_valid is not None else np.ones(ortho_frame.shape, bool)
         m_valid = prior.map_valid if prior.map_valid is not None else np.ones(map_window.shape[:2], bool)
-        if np.count_nonzero(o_valid) < 64:  # (a bool .sum() costs ~0.7 ms on a 2 Mpx frame)
+        o_valid = np.asarray(o_valid, bool)
+        if cv2.countNonZero(o_valid.view(np.uint8)) < 64:  # (a bool .sum() costs ~0.7 ms on a 2 Mpx frame)
             return None
         Ho, Wo = ortho_frame.shape
         L = max(0, math.ceil(math.log2(max(Ho, Wo) / p.coarse_size_px)))
         pyr_o = pyramid(as_u8(ortho_frame), o_valid, L)
-        pyr_m = pyramid(as_u8(map_window), m_valid, L)
+        pyr_m = pyramid(as_u8(map_window), m_valid, L, prior.map_pyramid if callable(prior.map_pyramid) else None)
         s = 2.0**L
         origin = np.asarray(prior.origin_px, float)
         coarse_o = robust_image(*pyr_o[L], p.feature)
-        coarse_m = robust_image(*pyr_m[L], p.feature)
+        f_m = prior.map_features(p.feature, L) if callable(prior.map_features) else None
+        coarse_m = robust_image(*pyr_m[L], p.feature) if f_m is None else (f_m, pyr_m[L][1])
         g_res = self._global(coarse_o, coarse_m, origin / s, prior.search_radius_px / s + 1.0)
         if g_res is None:
             return None
@@ -167,7 +179,7 @@ class AreaMatcherBase(SceneMatcher):
         rot_px = prior.heading_sigma_rad * 0.5 * math.hypot(Ho, Wo)
         rot_px = rot_px if rot_px > p.consensus_px else 0.0
         T0, cand = tile_grid(pyr_o[0][1], coarse_o[0], int(s), p.tile_px, p.tiles_x, p.tiles_y, p.max_tiles)
-        fm0 = prior.map_features(p.feature) if callable(prior.map_features) else None
+        fm0 = prior.map_features(p.feature, 0) if callable(prior.map_features) else None
         tm = refine_tiles(pyr_o, pyr_m, origin, offset, p.tile_radius_coarse * s + 1.0 + rot_px, cand, T0,
                           p.feature, p.min_tile_ncc, map_feat0=fm0)
         con = tile_consensus(tm, p.consensus_px + rot_px, p.inlier_px, projective=p.consensus_model == "homography")

@@ -2,9 +2,11 @@
 crop instead of a fresh read (reprojecting a GeoTIFF window costs ~100 ms per frame).
 
 The cache holds one grey window per ground sample (the whole map when it is small enough); a
-request inside it is served as a view. A crop lies on the cached grid, so its north-west corner
-can differ from the requested bounds by up to one pixel (it always covers them); callers use the
-returned raster's own geometry.
+request inside it is served as a view. A crop lies on the cached grid and starts on a multiple
+of ALIGN_PX pixels of it, so its north-west corner can differ from the requested bounds by up to
+ALIGN_PX pixels (it always covers them); callers use the returned raster's own geometry. The
+alignment lets a crop's reduced levels (area.Pyramid) and their feature images be cut from the
+cached read's, computed once, instead of being made again for every frame.
 """
 
 from __future__ import annotations
@@ -13,9 +15,15 @@ import math
 
 import numpy as np
 
+from testbench.navigation.ismn.area import Pyramid
 from testbench.navigation.ismn.ortho import to_grey_u8
 from testbench.world import memo
 from testbench.world.raster import LocalRaster
+
+
+#: Crops start on multiples of this many pixels of the cached read: levels up to log2(ALIGN_PX)
+#: (a 2^3 reduction, the matchers' coarse level for a 2 Mpx ortho frame) are cut from the read's.
+ALIGN_PX = 8
 
 
 def quantise_gsd(gsd_m: float, native_gsd_m: float | None, steps_per_octave: int = 8) -> float:
@@ -51,7 +59,8 @@ class MapWindowCache:
         self._cache: dict[float, LocalRaster] = {}
         self._whole: dict[float, bool] = {}  # the cached read at this gsd is the whole map
         self._memo_keys: dict[float, tuple | None] = {}
-        self._features: dict[tuple[float, str], np.ndarray] = {}
+        self._features: dict[tuple[float, str, int], np.ndarray] = {}
+        self._pyramids: dict[float, Pyramid] = {}
 
     def _whole_map_bounds(self, gsd_m: float) -> tuple[float, float, float, float] | None:
         fp = getattr(self.source, "footprint", None)
@@ -69,11 +78,13 @@ class MapWindowCache:
             c = None
             evict_all = len(self._cache) > 4
             self._cache.pop(gsd_m, None)
+            self._pyramids.pop(gsd_m, None)
             for k in [k for k in self._features if k[0] == gsd_m]:
                 del self._features[k]
             if evict_all:
                 self._cache.clear()
                 self._features.clear()
+                self._pyramids.clear()
             box = self._whole_map_bounds(gsd_m)
             self._whole[gsd_m] = box is not None
             if box is None:
@@ -91,6 +102,7 @@ class MapWindowCache:
         c0 = int(math.floor((east_min - c.east0_m) / g + 1e-9))
         r1 = int(math.ceil((c.north0_m - north_min) / g - 1e-9))
         c1 = int(math.ceil((east_max - c.east0_m) / g - 1e-9))
+        r0, c0 = r0 - r0 % ALIGN_PX, c0 - c0 % ALIGN_PX
         if not self._whole[gsd_m]:
             r0, c0, r1, c1 = max(0, r0), max(0, c0), min(c.shape[0], r1), min(c.shape[1], c1)
         elif r0 < 0 or c0 < 0 or r1 > c.shape[0] or c1 > c.shape[1]:
@@ -103,23 +115,59 @@ class MapWindowCache:
         r = self.source.read_local(box[0], box[1], box[2], box[3], gsd_m, **extra)
         return LocalRaster(to_grey_u8(r.data), np.asarray(r.valid, bool), r.north0_m, r.east0_m, r.gsd_m)
 
-    def features(self, window: LocalRaster, kind: str) -> np.ndarray | None:
-        """Appearance-robust feature image (features.robust_image) of a window this cache
-        served, cut from the feature image of the whole cached read (computed once per read);
-        None when the window is not a crop of the current cache."""
+    def _aligned_crop(self, window: LocalRaster, level: int) -> tuple[int, int, int, int] | None:
+        """(row, col, rows, cols) of `window` reduced 2^level times (area.Pyramid's sizes: each
+        level the largest even crop halved) inside the cached read's level `level`; None when
+        the window is not a crop of the current cache or does not start on a multiple of 2^level."""
         c = self._cache.get(window.gsd_m)
         at = None if c is None else _crop_of(c, window)
+        s = 2**level
+        if at is None or at[0] % s or at[1] % s:
+            return None
+        return at[0] // s, at[1] // s, window.shape[0] // s, window.shape[1] // s
+
+    def _pyramid(self, gsd_m: float) -> Pyramid:
+        pyr = self._pyramids.get(gsd_m)
+        if pyr is None:
+            c = self._cache[gsd_m]
+            pyr = self._pyramids[gsd_m] = Pyramid(c.data, c.valid, int(math.log2(ALIGN_PX)))
+        return pyr
+
+    def pyramid_level(self, window: LocalRaster, level: int) -> tuple[np.ndarray, np.ndarray] | None:
+        """(grey uint8, valid bool) of a window this cache served, reduced 2^level times exactly as
+        area.Pyramid reduces it (2 x 2 means are local, so a crop of the read's level is the
+        crop's level), cut from the cached read's pyramid (made once per read); None when the
+        window is no aligned crop of the current cache or level is beyond log2(ALIGN_PX)."""
+        if not 0 < level <= math.log2(ALIGN_PX):
+            return None
+        at = self._aligned_crop(window, level)
         if at is None:
             return None
-        f = self._features.get((window.gsd_m, kind))
+        r, c, h, w = at
+        img, valid = self._pyramid(window.gsd_m)[level]
+        return img[r:r + h, c:c + w], valid[r:r + h, c:c + w]
+
+    def features(self, window: LocalRaster, kind: str, level: int = 0) -> np.ndarray | None:
+        """Appearance-robust feature image (features.robust_image) of a window this cache
+        served, reduced 2^level times, cut from the feature image of the whole cached read's
+        level (computed once per read); None when the window is not an (aligned) crop of the
+        current cache. The local normalisation then sees the read around the window too, where
+        the window's own image has its edge, and its global term is the read's."""
+        at = self._aligned_crop(window, level) if level <= math.log2(ALIGN_PX) else None
+        if at is None:
+            return None
+        gsd = window.gsd_m
+        f = self._features.get((gsd, kind, level))
         if f is None:
             from testbench.navigation.ismn.features import robust_image
 
-            key = self._memo_keys.get(window.gsd_m)
-            f = memo.cached(key and ("ismn-features", kind, key), lambda: robust_image(c.data, c.valid, kind)[0])
-            self._features[(window.gsd_m, kind)] = f
-        r0, c0 = at
-        return f[r0:r0 + window.shape[0], c0:c0 + window.shape[1]]
+            key = self._memo_keys.get(gsd)
+            img, valid = self._pyramid(gsd)[level]
+            memo_key = key and (("ismn-features", kind, key) if level == 0 else ("ismn-features", kind, level, key))
+            f = memo.cached(memo_key, lambda: robust_image(img, valid, kind)[0])
+            self._features[(gsd, kind, level)] = f
+        r, c, h, w = at
+        return f[r:r + h, c:c + w]
 
 
 def _padded_crop(c: LocalRaster, r0: int, c0: int, r1: int, c1: int) -> LocalRaster:

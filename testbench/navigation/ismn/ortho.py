@@ -116,7 +116,9 @@ class Orthorectifier:
             map_x, map_y = self._relief_maps(K_s, c, R_cn, north0_m, east0_m, g, shape, height_fn)
             ortho = cv2.remap(small, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
         valid = ortho > 0
-        valid &= self._geometry_mask(c, R_cn, north0_m, east0_m, g, shape, ground_down_m)
+        geometry_ok = self._geometry_mask(c, R_cn, north0_m, east0_m, g, shape, ground_down_m)
+        if geometry_ok is not None:
+            valid &= geometry_ok
         K_full = self.camera.K
 
         def cam_xy_full(cols, rows, _h=height_fn):
@@ -155,10 +157,12 @@ class Orthorectifier:
         return map_x, map_y
 
     def _geometry_mask(self, c, R_cn, north0, east0, g, shape, ground_down_m, step=16):
-        """True where the ground is in front of the camera and within max_off_nadir of nadir.
+        """(H, W) bool, True where the ground is in front of the camera and within max_off_nadir
+        of nadir; None when that is the whole grid.
 
-        Both conditions are convex in the ortho plane, so all-true corners mean all-true; else
-        they are evaluated on a coarse grid and upsampled (nearest)."""
+        Both conditions are convex in the ortho plane, so all-true corners mean all-true (None:
+        no 2 Mpx mask to make and apply); else they are evaluated on a coarse grid and upsampled
+        (nearest)."""
         H_o, W_o = shape
         height = ground_down_m - c[2]
         r_max = height * np.tan(self.max_off_nadir_rad)
@@ -172,7 +176,7 @@ class Orthorectifier:
 
         corners = ok(np.array([0.0, W_o - 1, 0, W_o - 1]), np.array([0.0, 0, H_o - 1, H_o - 1]))
         if corners.all():
-            return np.ones(shape, bool)
+            return None
         nr, nc = -(-H_o // step), -(-W_o // step)
         cc, rr = np.meshgrid((np.arange(nc) + 0.5) * step - 0.5, (np.arange(nr) + 0.5) * step - 0.5)
         m = ok(cc.ravel(), rr.ravel()).reshape(nr, nc).astype(np.uint8)

@@ -159,7 +159,7 @@ class IsmnPipeline:
             self._maps.features(mapw, kind)  # once per cached read: part of the map access
         t1 = time.perf_counter()
         lat["window"] = 1e3 * (t1 - t0)
-        if Ho < 16 or Wo < 16 or np.count_nonzero(mapw.valid) < 0.05 * mapw.valid.size:
+        if Ho < 16 or Wo < 16 or cv2.countNonZero(np.asarray(mapw.valid, bool).view(np.uint8)) < 0.05 * mapw.valid.size:
             return fail("search window off the reference map", window=win)
 
         small, K_s = self.ortho.prepare(frame_image, nadir_gsd_m(self.camera, height) / g)
@@ -168,8 +168,15 @@ class IsmnPipeline:
         t2 = time.perf_counter()
         lat["ortho"] = 1e3 * (t2 - t1)
 
-        feats = (lambda kind, _w=mapw: self._maps.features(_w, kind)) if self._maps is not None else None
-        prior = MatchPrior((float(c0), float(r0)), win.margin_m / g, of.valid, mapw.valid, g, feats, heading_sigma)
+        feats = levels = None
+        if self._maps is not None:
+            def feats(kind, level=0, _w=mapw):
+                return self._maps.features(_w, kind, level)
+
+            def levels(level, _w=mapw):
+                return self._maps.pyramid_level(_w, level)
+        prior = MatchPrior((float(c0), float(r0)), win.margin_m / g, of.valid, mapw.valid, g, feats, heading_sigma,
+                           levels)
         res = self.matcher.match(of.image, map_grey, prior)
         t3 = time.perf_counter()
         lat["match"] = 1e3 * (t3 - t2)

@@ -93,7 +93,26 @@ def _linearise(K, R_nc, c, X, uv_obs, sigma_ground_m, sigma_img_px):
     J[:, :, 3:] = Jp @ skew(xc)  # R_nc Exp(delta): x_c -> x_c - delta x x_c = x_c + [x_c]x delta
     Jg = Jp @ R_cn[:, :2]  # d uv / d (north, east) of the map point
     S = sigma_ground_m**2 * (Jg @ Jg.transpose(0, 2, 1)) + sigma_img_px**2 * np.eye(2)
-    return r, J, np.linalg.inv(S)
+    return r, J, _inv_sym2(S)
+
+
+def _inv_sym2(S: np.ndarray) -> np.ndarray:
+    """Inverses of symmetric positive-definite 2 x 2 matrices S (N, 2, 2), in closed form
+    (numpy's batched LAPACK inverse costs ~25 us for 50 of them, most of it call overhead)."""
+    a, b, d = S[:, 0, 0], S[:, 0, 1], S[:, 1, 1]
+    inv = np.empty_like(S)
+    det = a * d - b * b
+    inv[:, 0, 0] = d / det
+    inv[:, 1, 1] = a / det
+    inv[:, 0, 1] = inv[:, 1, 0] = -b / det
+    return inv
+
+
+def _normal_equations(J: np.ndarray, W: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(J^T W J (6, 6), J^T W r (6,)) summed over the points: J (N, 2, 6), W (N, 2, 2), r (N, 2).
+    One (6, 2N) x (2N, 6) product (a three-operand einsum took ~110 us for 50 points)."""
+    JtW = (J.transpose(0, 2, 1) @ W).transpose(1, 0, 2).reshape(6, -1)  # (6, 2N)
+    return JtW @ J.reshape(-1, 6), JtW @ r.reshape(-1)
 
 
 def solve_camera_pose(
@@ -135,8 +154,7 @@ def solve_camera_pose(
     for rnd in range(2):
         for _ in range(iterations):
             r, J, W = _linearise(K, R, c, X[inl], uv[inl], sigma_ground_m, sigma_img_px)
-            A = np.einsum("nki,nkl,nlj->ij", J, W, J)
-            b = np.einsum("nki,nkl,nl->i", J, W, r)
+            A, b = _normal_equations(J, W, r)
             if P_prior_inv is not None:
                 psi = _log(R @ R_nc0.T)  # NED attitude deviation from the INS
                 Jpsi = _prior_jacobian(R)
@@ -159,7 +177,7 @@ def solve_camera_pose(
         if method == "opencv":
             iterations = 8  # refine the inlier set with Gauss-Newton
     r, J, W = _linearise(K, R, c, X[inl], uv[inl], sigma_ground_m, sigma_img_px)
-    A_img = np.einsum("nki,nkl,nlj->ij", J, W, J)  # information of the image alone
+    A_img, _ = _normal_equations(J, W, r)  # information of the image alone
     A = A_img.copy()
     Jpsi = _prior_jacobian(R)
     if P_prior_inv is not None:

@@ -71,8 +71,11 @@ class MatchPrior:
     origin_px (2,): predicted (col, row) of the ortho frame's pixel (0, 0) in the map window;
     search_radius_px: how far from it the true placement may be (3 sigma + margin);
     ortho_valid (H, W) bool and map_valid (Hm, Wm) bool masks; gsd_m: metres per pixel;
-    map_features: optional callable kind -> (Hm, Wm) float32 feature image of the map window
-    (features.robust_image), precomputed by the caller (a cached map), or None;
+    map_features: optional callable (kind, level) -> float32 feature image (features.robust_image)
+    of the map window reduced 2^level times, (Hm, Wm) at level 0, precomputed by the caller (a
+    cached map), or None (the callable too may answer None: the matcher then computes it);
+    map_pyramid: optional callable level -> (grey uint8, valid bool) of the map window reduced
+    2^level times as area.Pyramid makes it (a cached map's), or None;
     heading_sigma_rad: the estimate's 1-sigma heading uncertainty, which rotates the ortho view
     against the map (a matcher that searches translations only widens its search with it).
     """
@@ -84,6 +87,7 @@ class MatchPrior:
     gsd_m: float = 1.0
     map_features: object = None
     heading_sigma_rad: float = 0.0
+    map_pyramid: object = None
 
 
 @dataclass(frozen=True)
