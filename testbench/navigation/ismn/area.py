@@ -28,7 +28,7 @@ from testbench.core.interfaces import SceneMatcher
 from testbench.core.registry import ParamsModel, register
 from testbench.navigation.ismn.features import robust_image
 from testbench.navigation.ismn.tiles import feature_crop, refine_tiles, subpixel_peak, tile_consensus, tile_grid
-from testbench.navigation.ismn.types import MatchPrior, MatchResult
+from testbench.navigation.ismn.types import MatchPrior, MatchResult, OrthoFrame
 
 __all__ = ["NccMatcher", "PhaseMatcher", "feature_crop", "subpixel_peak"]
 
@@ -146,20 +146,29 @@ class AreaMatcherBase(SceneMatcher):
     def __init__(self, params=None, *, ctx=None):
         self.p = params if params is not None else self.Params()
 
-    def match(self, ortho_frame: np.ndarray, map_window: np.ndarray, prior: MatchPrior) -> MatchResult | None:
+    #: match() also takes an OrthoFrame, whose pixels it asks for by region and level.
+    accepts_ortho_frame = True
+
+    def match(self, ortho_frame: np.ndarray | OrthoFrame, map_window: np.ndarray, prior: MatchPrior) -> MatchResult | None:
+        """ortho_frame: (H, W) grey image (its mask prior.ortho_valid), or an OrthoFrame (its own
+        mask): then only the coarse level and the tiles' regions are warped."""
         p = self.p
-        o_valid = prior.ortho_valid if prior.ortho_valid is not None else np.ones(ortho_frame.shape, bool)
         m_valid = prior.map_valid if prior.map_valid is not None else np.ones(map_window.shape[:2], bool)
-        o_valid = np.asarray(o_valid, bool)
-        if cv2.countNonZero(o_valid.view(np.uint8)) < 64:  # (a bool .sum() costs ~0.7 ms on a 2 Mpx frame)
-            return None
-        Ho, Wo = ortho_frame.shape
+        if isinstance(ortho_frame, OrthoFrame):
+            of = ortho_frame
+        else:
+            o_valid = prior.ortho_valid if prior.ortho_valid is not None else np.ones(ortho_frame.shape, bool)
+            of = OrthoFrame.from_image(as_u8(ortho_frame), o_valid)
+        Ho, Wo = of.shape
         L = max(0, math.ceil(math.log2(max(Ho, Wo) / p.coarse_size_px)))
-        pyr_o = pyramid(as_u8(ortho_frame), o_valid, L)
+        coarse = of.coarse(L)
+        # Fewer than 64 valid pixels (each valid coarse pixel holds 4^L): nothing to match.
+        if cv2.countNonZero(coarse[1].view(np.uint8)) * 4**L < 64:
+            return None
         pyr_m = pyramid(as_u8(map_window), m_valid, L, prior.map_pyramid if callable(prior.map_pyramid) else None)
         s = 2.0**L
         origin = np.asarray(prior.origin_px, float)
-        coarse_o = robust_image(*pyr_o[L], p.feature)
+        coarse_o = robust_image(*coarse, p.feature)
         f_m = prior.map_features(p.feature, L) if callable(prior.map_features) else None
         coarse_m = robust_image(*pyr_m[L], p.feature) if f_m is None else (f_m, pyr_m[L][1])
         g_res = self._global(coarse_o, coarse_m, origin / s, prior.search_radius_px / s + 1.0)
@@ -178,9 +187,9 @@ class AreaMatcherBase(SceneMatcher):
         # ~1 mrad, made every tile search two pyramid levels: latency p95 36 -> 46 ms.)
         rot_px = prior.heading_sigma_rad * 0.5 * math.hypot(Ho, Wo)
         rot_px = rot_px if rot_px > p.consensus_px else 0.0
-        T0, cand = tile_grid(pyr_o[0][1], coarse_o[0], int(s), p.tile_px, p.tiles_x, p.tiles_y, p.max_tiles)
+        T0, cand = tile_grid(of, coarse_o[0], int(s), p.tile_px, p.tiles_x, p.tiles_y, p.max_tiles)
         fm0 = prior.map_features(p.feature, 0) if callable(prior.map_features) else None
-        tm = refine_tiles(pyr_o, pyr_m, origin, offset, p.tile_radius_coarse * s + 1.0 + rot_px, cand, T0,
+        tm = refine_tiles(of, pyr_m, origin, offset, p.tile_radius_coarse * s + 1.0 + rot_px, cand, T0,
                           p.feature, p.min_tile_ncc, map_feat0=fm0)
         con = tile_consensus(tm, p.consensus_px + rot_px, p.inlier_px, projective=p.consensus_model == "homography")
         if con is None or con.inliers.sum() < p.min_inliers:

@@ -175,15 +175,19 @@ class IsmnPipeline:
 
             def levels(level, _w=mapw):
                 return self._maps.pyramid_level(_w, level)
-        prior = MatchPrior((float(c0), float(r0)), win.margin_m / g, of.valid, mapw.valid, g, feats, heading_sigma,
-                           levels)
-        res = self.matcher.match(of.image, map_grey, prior)
+        # A matcher that takes the OrthoFrame warps only what it uses (the area matchers: a
+        # coarse level and their tiles); any other gets the whole warped image and its mask.
+        lazy = bool(getattr(self.matcher, "accepts_ortho_frame", False))
+        prior = MatchPrior((float(c0), float(r0)), win.margin_m / g, None if lazy else of.valid, mapw.valid, g, feats,
+                           heading_sigma, levels)
+        res = self.matcher.match(of if lazy else of.image, map_grey, prior)
         t3 = time.perf_counter()
         lat["match"] = 1e3 * (t3 - t2)
         keep = dict(window=win)
         if p.keep_images:
             # The frame, not its thumbnail: IsmnDiagnostics makes that when the report asks.
-            keep.update(ortho=of.image, ortho_valid=of.valid, map_window=map_grey, frame=small, thumb_px=p.thumb_px)
+            # The OrthoFrame, not its image: that is warped only if the report asks for it.
+            keep.update(ortho_frame=of, map_window=map_grey, frame=small, thumb_px=p.thumb_px)
         if res is None:
             return fail("no match", **keep)
         off_m = np.array([-res.offset_px[1] * g, res.offset_px[0] * g])  # (north, east)

@@ -71,8 +71,15 @@ def _std(img: np.ndarray) -> float:
 def feature_crop(img, valid, x, y, w, h, kind, pad=8):
     """Appearance-robust feature of img[y:y+h, x:x+w], computed with `pad` pixels of context."""
     H, W = img.shape
+    return feature_of_region(lambda xa, ya, xb, yb: (img[ya:yb, xa:xb], valid[ya:yb, xa:xb]), W, H, x, y, w, h, kind, pad)
+
+
+def feature_of_region(crop, W, H, x, y, w, h, kind, pad=8):
+    """Appearance-robust feature of columns x:x+w, rows y:y+h of a W x H image that crop(x0,
+    y0, x1, y1) -> (grey, valid) serves, computed with `pad` pixels of context (fewer at its
+    edges)."""
     xa, ya, xb, yb = max(0, x - pad), max(0, y - pad), min(W, x + w + pad), min(H, y + h + pad)
-    f, _ = robust_image(img[ya:yb, xa:xb], valid[ya:yb, xa:xb], kind)
+    f, _ = robust_image(*crop(xa, ya, xb, yb), kind)
     return f[y - ya:y - ya + h, x - xa:x - xa + w]
 
 
@@ -92,11 +99,21 @@ class TileMatches:
         return TileMatches(z, z, np.zeros(0), np.zeros(0))
 
 
-def tile_grid(valid0: np.ndarray, coarse_feat: np.ndarray, sL: int, tile_px: int, nx: int, ny: int,
+def tile_grid(valid0, coarse_feat: np.ndarray, sL: int, tile_px: int, nx: int, ny: int,
               max_tiles: int, min_valid: float = 0.9) -> tuple[int, list[tuple[int, int]]]:
     """(tile side T0, [(x0, y0)]) of up to max_tiles candidate tiles on an nx x ny grid over the
-    ortho frame, mostly valid, ranked by texture (variance of the coarse feature)."""
-    Ho, Wo = valid0.shape
+    ortho frame, mostly valid, ranked by texture (variance of the coarse feature).
+
+    valid0: the frame's full-resolution valid mask (H, W) bool, or an OrthoFrame (its tiles'
+    masks are warped as they are asked for)."""
+    if isinstance(valid0, np.ndarray):
+        Ho, Wo = valid0.shape
+        def share(x0, y0, T):
+            return _valid_share(valid0[y0:y0 + T, x0:x0 + T])
+    else:
+        Ho, Wo = valid0.shape
+        def share(x0, y0, T, _of=valid0):
+            return _of.valid_share(x0, y0, T, T)
     T0 = int(min(tile_px, Wo // 2, Ho // 2)) // 4 * 4
     if T0 < 16:
         return T0, []
@@ -105,7 +122,7 @@ def tile_grid(valid0: np.ndarray, coarse_feat: np.ndarray, sL: int, tile_px: int
         for i in range(nx):
             x0 = int(round(i * (Wo - T0) / max(1, nx - 1)))
             y0 = int(round(j * (Ho - T0) / max(1, ny - 1)))
-            if _valid_share(valid0[y0:y0 + T0, x0:x0 + T0]) < min_valid:
+            if share(x0, y0, T0) < min_valid:
                 continue
             c = coarse_feat[y0 // sL:(y0 + T0) // sL + 1, x0 // sL:(x0 + T0) // sL + 1]
             cands.append((_std(c) ** 2 if c.size else 0.0, x0, y0))
@@ -113,9 +130,12 @@ def tile_grid(valid0: np.ndarray, coarse_feat: np.ndarray, sL: int, tile_px: int
     return T0, [(x0, y0) for _, x0, y0 in cands[:max_tiles]]
 
 
-def refine_tiles(pyr_o, pyr_m, origin0, offset0, radius0_px: float, tiles, T0: int, kind: str,
+def refine_tiles(ortho, pyr_m, origin0, offset0, radius0_px: float, tiles, T0: int, kind: str,
                  min_ncc: float, final_radius_px: int = 2, map_feat0: np.ndarray | None = None) -> TileMatches:
     """Search each tile around the global placement (origin0 + offset0, full-resolution px).
+
+    ortho: the ortho frame (an OrthoFrame: the tiles' regions are cut or warped from it at each
+    level); pyr_m: the map window's area.Pyramid.
 
     radius0_px: full-resolution uncertainty of offset0. The first level searched is the
     coarsest at which the tile is still >= 24 px and the radius <= 6 px; each finer level then
@@ -123,7 +143,8 @@ def refine_tiles(pyr_o, pyr_m, origin0, offset0, radius0_px: float, tiles, T0: i
     map_feat0: the map window's full-resolution feature image when the caller has it (crops of
     it replace per-tile feature computation on the map side).
     """
-    n_lev = len(pyr_o)
+    n_lev = len(pyr_m)
+    Ho, Wo = ortho.shape
     lev0 = 0
     while lev0 + 1 < n_lev and radius0_px / 2 ** lev0 > 6 and T0 / 2 ** (lev0 + 1) >= 24:
         lev0 += 1
@@ -138,7 +159,6 @@ def refine_tiles(pyr_o, pyr_m, origin0, offset0, radius0_px: float, tiles, T0: i
         for lev in range(lev0, -1, -1):
             s = 2**lev
             T = T0 // s
-            go, vo = pyr_o[lev]
             gm, vm = pyr_m[lev]
             tx, ty = x0 // s, y0 // s
             r = int(math.ceil(radius0_px / s)) + 1 if lev == lev0 else final_radius_px
@@ -150,7 +170,8 @@ def refine_tiles(pyr_o, pyr_m, origin0, offset0, radius0_px: float, tiles, T0: i
                     or (not map_all_valid[lev] and _valid_share(vm[my:my + T + 2 * r, mx:mx + T + 2 * r]) < 0.95):
                 ncc = -1.0
                 break
-            tmpl = feature_crop(go, vo, tx, ty, T, T, kind)
+            tmpl = feature_of_region(lambda xa, ya, xb, yb, _l=lev: ortho.crop(_l, xa, ya, xb, yb),
+                                     Wo >> lev, Ho >> lev, tx, ty, T, T, kind)
             if lev == 0 and map_feat0 is not None:
                 region = map_feat0[my:my + T + 2 * r, mx:mx + T + 2 * r]
             else:

@@ -72,3 +72,73 @@ def test_window_contains_truth_and_scales_with_covariance(camera, mount, make_es
     assert b[0] <= true_win.centre_ne_m[0] <= b[1] and b[2] <= true_win.centre_ne_m[1] <= b[3]
     wide = predict_search_window(make_estimate(truth_pos, rpy, sigma_pos_m=100.0), camera, mount, 0.0, 4.0)
     assert win.margin_m >= 3 * sigma + 10.0 and wide.margin_m >= 3 * 100.0 + 10.0 > win.margin_m
+
+
+def _oblique_ortho(raster, camera, mount, height_fn=None):
+    """(lazy OrthoFrame, its whole image and mask warped at once) of an oblique frame (the
+    footprint's edge and the off-nadir limit both cut the grid)."""
+    from testbench.navigation.ismn.geometry import footprint_bounds
+
+    pos, R_nb = np.array([50.0, -30.0, -800.0]), euler_to_dcm(np.radians([12.0, 8.0, 35.0]))
+    frame = render_plane_frame(raster, camera, pos, R_nb, mount)
+    c, R_nc = camera_pose_ned(pos, R_nb, mount)
+    orth = Orthorectifier(camera, np.radians(55.0))
+    fp = footprint_bounds(c, R_nc, camera, 0.0, np.radians(80.0))
+    win = RasterMapSource(raster).read_local(*fp, raster.gsd_m)
+    small, K_s = orth.prepare(frame, 1.0)
+    args = (small, K_s, c, R_nc, win.north0_m, win.east0_m, win.gsd_m, win.shape, (0, 0), 0.0, height_fn)
+    whole = orth.rectify(*args)
+    return orth.rectify(*args), whole.image, whole.valid
+
+
+def _check_lazy_ortho(of, image, valid):
+    from testbench.navigation.ismn.area import pyramid
+
+    assert valid.any() and not valid.all()  # the test needs both kinds of pixels
+    H, W = of.shape
+    pyr = pyramid(image, valid, 3)
+    rng = np.random.default_rng(1)
+    for level in (0, 1, 2):
+        for _ in range(40):
+            h, w = 48 >> level, 64 >> level
+            y0, x0 = int(rng.integers(0, (H >> level) - h)), int(rng.integers(0, (W >> level) - w))
+            img, v = of.crop(level, x0, y0, x0 + w, y0 + h)
+            ref_img, ref_v = pyr[level][0][y0:y0 + h, x0:x0 + w], pyr[level][1][y0:y0 + h, x0:x0 + w]
+            # The same warp of a region: at most one grey level of rounding apart, same mask.
+            assert np.abs(img.astype(int) - ref_img).max() <= 1
+            np.testing.assert_array_equal(v, ref_v)
+            if level == 0:
+                assert of.valid_share(x0, y0, w, h) == ref_v.mean()
+    # The coarse level is warped from the reduced frame: close to the reduced image (5.5 grey
+    # levels on average in this oblique view; 12 warped at the level itself), and valid only
+    # where the reduced image is.
+    c_img, c_valid = of.coarse(3)
+    assert c_img.shape == pyr[3][0].shape
+    assert not (c_valid & ~pyr[3][1]).any() and c_valid.sum() >= 0.9 * pyr[3][1].sum()
+    both = c_valid & pyr[3][1]
+    assert np.abs(c_img[both].astype(float) - pyr[3][0][both]).mean() < 7.0
+
+
+def test_lazy_ortho_regions_equal_the_whole_warp(seasons, camera, mount):
+    """Regions, reduced regions and valid shares of the lazily warped ortho frame are those of
+    the whole frame warped at once (plane case); the directly warped coarse level is close."""
+    _check_lazy_ortho(*_oblique_ortho(seasons[0], camera, mount))
+
+
+def test_lazy_ortho_over_relief(seasons, camera, mount):
+    """The same over relief (per-pixel ground heights, cv2.remap)."""
+    _check_lazy_ortho(*_oblique_ortho(seasons[0], camera, mount, lambda n, e: -(0.03 * np.asarray(e) + 10.0)))
+
+
+def test_surely_valid_never_claims_an_invalid_pixel(seasons, camera, mount):
+    """The corner test that spares the warp of a candidate tile says "all valid" only when it is."""
+    of, _, valid = _oblique_ortho(seasons[0], camera, mount)
+    H, W = of.shape
+    rng = np.random.default_rng(2)
+    sure = 0
+    for _ in range(400):
+        y0, x0 = int(rng.integers(0, H - 64)), int(rng.integers(0, W - 64))
+        if of._surely_valid(x0, y0, 64, 64):
+            sure += 1
+            assert valid[y0:y0 + 64, x0:x0 + 64].all()
+    assert sure > 50  # and it does say so for most interior tiles

@@ -95,10 +95,11 @@ def test_a_tile_displaced_beyond_its_search_is_dropped_not_clipped(seasons):
     same tiles with a search wide enough recover the offset."""
     from testbench.navigation.ismn.area import as_u8, pyramid
     from testbench.navigation.ismn.tiles import refine_tiles
+    from testbench.navigation.ismn.types import OrthoFrame
 
     m = as_u8(seasons[1].data[:600, :700, 0])
     o = as_u8(_shifted_crop(seasons[0].data[:600, :700, 0], 60, 70, 400, 300, 9.0, -7.0))
-    pyr_o = pyramid(o, np.ones(o.shape, bool), 0)
+    pyr_o = OrthoFrame.from_image(o)
     pyr_m = pyramid(m, np.ones(m.shape, bool), 0)
     tiles = [(x, y) for x in (40, 160, 280) for y in (40, 160)]
     wide = refine_tiles(pyr_o, pyr_m, (60, 70), (0.0, 0.0), 12.0, tiles, 64, "gradmag", 0.15)

@@ -147,3 +147,30 @@ def test_pyramid_levels_equal_chained_halving():
     assert np.abs(pyr[2][0].astype(int) - g2).max() <= 1
     v2 = pyr[2][1]
     assert not v2[10 // 4, 20 // 4] and v2.sum() == v2.size - 1
+
+
+def test_map_cache_serves_the_levels_of_its_crops():
+    """A window's reduced levels cut from the cached read's pyramid are the window's own (crops
+    start on multiples of ALIGN_PX); its coarse feature image differs only by the context the
+    read gives its local normalisation."""
+    from testbench.navigation.ismn.area import pyramid
+    from testbench.navigation.ismn.features import robust_image
+    from testbench.navigation.ismn.mapcache import ALIGN_PX
+
+    rng = np.random.default_rng(3)
+    data = rng.integers(0, 255, (401, 523, 3), dtype=np.uint8)
+    valid = np.ones((401, 523), bool)
+    valid[5:9, 300:320] = False
+    src = RasterMapSource(LocalRaster(data, valid, 300.0, -250.0, 1.5))
+    cache = MapWindowCache(src)
+    for n0, e0 in [(-60.3, -90.1), (-51.0, -75.7), (150.0, -240.0)]:
+        w = cache.read(n0, n0 + 140.3, e0, e0 + 170.2, 1.5)
+        assert w.north0_m >= n0 + 140.3 - 1e-9 and w.east0_m <= e0 + 1e-9  # still covers the request
+        own = pyramid(w.data, w.valid, 3)
+        for level in (1, 2, 3):
+            img, v = cache.pyramid_level(w, level)
+            np.testing.assert_array_equal(img, own[level][0])
+            np.testing.assert_array_equal(v, own[level][1])
+        f, f_own = cache.features(w, "gradmag", 1), robust_image(*own[1])[0]
+        assert f.shape == f_own.shape and np.abs(f - f_own)[12:-12, 12:-12].max() < 0.05
+    assert cache.pyramid_level(w, int(np.log2(ALIGN_PX)) + 1) is None
