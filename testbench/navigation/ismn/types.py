@@ -57,11 +57,18 @@ class OrthoFrame:
 
     - valid_share(x0, y0, w, h): the share of valid pixels in a full-resolution region.
 
+    A grid of at most WHOLE_BELOW_PX pixels is warped whole at the first request of any kind:
+    below that, a matcher's ~130 region warps (~30 us each, most of it per call) cost more than
+    the whole grid (~4.5 ns a pixel with its reductions): naip_ismn_800m's 0.19 Mpx grids
+    (5 m per pixel) took 1.4 ms longer per frame region by region.
+
     render(x0, y0, w, h) -> (grey, valid) of a full-resolution region; render_coarse(level) ->
     (grey, valid); surely_valid(x0, y0, w, h) -> bool: True only when every pixel of the region
     is valid, found without warping it (False: not known). An OrthoFrame made from arrays
     (image=, valid=) serves everything from them.
     """
+
+    WHOLE_BELOW_PX = 750_000
 
     def __init__(self, shape: tuple[int, int], north0_m: float, east0_m: float, gsd_m: float,
                  origin_px: tuple[int, int], H_ortho_to_cam: np.ndarray, cam_xy_full=None,
@@ -80,6 +87,7 @@ class OrthoFrame:
         self._valid = None if image is None else (np.ones(self.shape, bool) if valid is None else np.asarray(valid, bool))
         self._coarse: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self._pyramid = None
+        self._by_region = self.shape[0] * self.shape[1] > self.WHOLE_BELOW_PX
 
     @classmethod
     def from_image(cls, image: np.ndarray, valid: np.ndarray | None = None) -> "OrthoFrame":
@@ -104,6 +112,8 @@ class OrthoFrame:
     def crop(self, level: int, x0: int, y0: int, x1: int, y1: int) -> tuple[np.ndarray, np.ndarray]:
         """(grey (y1 - y0, x1 - x0) uint8, valid bool) of the grid reduced 2^level times; the
         region must lie inside that level (W >> level columns, H >> level rows)."""
+        if not self._by_region:
+            self._whole()
         if self._image is not None:
             if level == 0:
                 return self._image[y0:y1, x0:x1], self._valid[y0:y1, x0:x1]
@@ -123,7 +133,7 @@ class OrthoFrame:
 
     def valid_share(self, x0: int, y0: int, w: int, h: int) -> float:
         """Share of valid pixels in full-resolution columns x0:x0+w, rows y0:y0+h (inside the grid)."""
-        if self._image is None and self._surely_valid is not None and self._surely_valid(x0, y0, w, h):
+        if self._by_region and self._image is None and self._surely_valid is not None and self._surely_valid(x0, y0, w, h):
             return 1.0
         valid = self.crop(0, x0, y0, x0 + w, y0 + h)[1]
         return cv2.countNonZero(valid.view(np.uint8)) / valid.size if valid.size else float("nan")
@@ -134,9 +144,9 @@ class OrthoFrame:
             return self.image, self.valid
         out = self._coarse.get(level)
         if out is None:
-            out = self._coarse[level] = (self.crop(level, 0, 0, self.shape[1] >> level, self.shape[0] >> level)
-                                         if self._render_coarse is None or self._image is not None
-                                         else self._render_coarse(level))
+            out = self._coarse[level] = (self._render_coarse(level)
+                                         if self._by_region and self._render_coarse is not None and self._image is None
+                                         else self.crop(level, 0, 0, self.shape[1] >> level, self.shape[0] >> level))
         return out
 
     def ortho_to_ne(self, col, row):
