@@ -137,7 +137,16 @@ class Controller(abc.ABC):
 
 
 class SceneMatcher(abc.ABC):
-    """Registers an orthorectified camera frame against a window of the reference map."""
+    """Registers an orthorectified camera frame against a window of the reference map.
+
+    ortho_frame is the (H, W) grey ortho image (its mask in prior.ortho_valid). A matcher whose
+    class sets accepts_ortho_frame = True gets the pipeline's OrthoFrame instead (with its own
+    mask), which warps only the regions and reduced levels the matcher asks for
+    (navigation.ismn.types.OrthoFrame): the area matchers use a tenth of a 2 Mpx grid.
+    """
+
+    #: True: match() takes an ismn OrthoFrame (regions warped on demand) as ortho_frame.
+    accepts_ortho_frame: bool = False
 
     @abc.abstractmethod
     def match(self, ortho_frame: np.ndarray, map_window: np.ndarray, prior: Any) -> Any | None:
