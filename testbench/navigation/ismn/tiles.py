@@ -106,14 +106,13 @@ def tile_grid(valid0, coarse_feat: np.ndarray, sL: int, tile_px: int, nx: int, n
 
     valid0: the frame's full-resolution valid mask (H, W) bool, or an OrthoFrame (its tiles'
     masks are warped as they are asked for)."""
+    Ho, Wo = valid0.shape
     if isinstance(valid0, np.ndarray):
-        Ho, Wo = valid0.shape
         def share(x0, y0, T):
             return _valid_share(valid0[y0:y0 + T, x0:x0 + T])
     else:
-        Ho, Wo = valid0.shape
-        def share(x0, y0, T, _of=valid0):
-            return _of.valid_share(x0, y0, T, T)
+        def share(x0, y0, T):
+            return valid0.valid_share(x0, y0, T, T)
     T0 = int(min(tile_px, Wo // 2, Ho // 2)) // 4 * 4
     if T0 < 16:
         return T0, []
