@@ -115,99 +115,7 @@ class Orthorectifier:
         H_small = K_s @ R_cn @ M  # ortho px -> small undistorted camera px (plane)
         geometry = self._geometry_grid(c, R_cn, north0_m, east0_m, g, shape, ground_down_m)
         relief = None if height_fn is None else self._relief_grid(K_s, c, R_cn, north0_m, east0_m, g, shape, height_fn)
-        frame_levels = {0: small}
-
-        def frame_level(level: int) -> np.ndarray:
-            """The prepared frame reduced 2^level times (2 x 2 means of its largest even crop)."""
-            out = frame_levels.get(level)
-            if out is None:
-                up = frame_level(level - 1)
-                h, w = up.shape[0] // 2 * 2, up.shape[1] // 2 * 2
-                out = frame_levels[level] = cv2.resize(up[:h, :w], (w // 2, h // 2), interpolation=cv2.INTER_AREA)
-            return out
-
-        def render(x0: int, y0: int, w: int, h: int) -> tuple[np.ndarray, np.ndarray]:
-            """(grey (h, w) uint8, valid bool) of full-resolution columns x0:x0+w, rows y0:y0+h."""
-            if relief is None:
-                T = np.array([[1.0, 0.0, x0], [0.0, 1.0, y0], [0.0, 0.0, 1.0]])
-                img = cv2.warpPerspective(small, H_small @ T, (w, h), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-                                          borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-            else:
-                map_x, map_y = _relief_maps(relief, x0, y0, w, h, shape)
-                img = cv2.remap(small, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-            valid = img > 0
-            if geometry is not None:
-                valid &= _grid_crop(geometry, x0, y0, w, h)
-            return img, valid
-
-        h_small, w_small = small.shape[:2]
-        (h00, h01, h02), (h10, h11, h12), (h20, h21, h22) = H_small.tolist()
-
-        def surely_valid(x0: int, y0: int, w: int, h: int) -> bool:
-            """True when every pixel of the region is valid, from its corners alone (plane case):
-            the pixels seen in the frame's interior (a sample between four frame pixels, all >= 1)
-            are the projective preimage of a rectangle, which is convex, so the region lies in it
-            when its corners do; and the geometry mask is constant on its blocks."""
-            if relief is not None:
-                return False
-            if geometry is not None:
-                grid, step = geometry
-                if not grid[y0 // step:(y0 + h - 1) // step + 1, x0 // step:(x0 + w - 1) // step + 1].all():
-                    return False
-            for x in (x0, x0 + w - 1):  # Python floats: ~80 candidate tiles a frame ask
-                for y in (y0, y0 + h - 1):
-                    z = h20 * x + h21 * y + h22
-                    if not z > 0:
-                        return False
-                    u, v = (h00 * x + h01 * y + h02) / z, (h10 * x + h11 * y + h12) / z
-                    if not (0.0 <= u <= w_small - 1 and 0.0 <= v <= h_small - 1):
-                        return False
-            return True
-
-        def render_level(level: int) -> tuple[np.ndarray, np.ndarray]:
-            """(grey, valid) of the whole grid reduced 2^level times, warped from the frame reduced
-            as much: pixel (X, Y) is the ortho point (s X + (s - 1) / 2, s Y + (s - 1) / 2), and
-            pixel u of the reduced frame is (u + 1/2) / s - 1/2 of the prepared one."""
-            s = 2**level
-            h, w = H_o >> level, W_o >> level
-            src = frame_level(level)
-            S = np.array([[1.0 / s, 0.0, 0.5 / s - 0.5], [0.0, 1.0 / s, 0.5 / s - 0.5], [0.0, 0.0, 1.0]])
-            if relief is None:
-                T = np.array([[s, 0.0, 0.5 * (s - 1)], [0.0, s, 0.5 * (s - 1)], [0.0, 0.0, 1.0]])
-                img = cv2.warpPerspective(src, S @ H_small @ T, (w, h), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-                                          borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-            else:
-                map_x, map_y = _relief_maps(relief, 0, 0, w, h, shape, level)
-                img = cv2.remap(src, map_x / s + (0.5 / s - 0.5), map_y / s + (0.5 / s - 0.5), cv2.INTER_LINEAR,
-                                borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-            # A reduced pixel is valid when all it covers is: at the frame's edge the warp mixes
-            # in the black outside over one reduced pixel, so one is eroded away (the grid's
-            # outer ring too, where the frame may end inside the last reduced pixel).
-            valid = cv2.erode((img > 0).view(np.uint8), np.ones((3, 3), np.uint8),
-                              borderType=cv2.BORDER_CONSTANT, borderValue=0).view(bool)
-            if geometry is not None:
-                grid, step = geometry
-                rows = np.arange(h) * s
-                cols = np.arange(w) * s
-                ok = np.ones((h, w), bool)
-                for r in (rows, rows + s - 1):
-                    for q in (cols, cols + s - 1):
-                        ok &= grid[np.ix_(r // step, q // step)]
-                valid &= ok
-            return img, valid
-
-        def render_coarse(level: int) -> tuple[np.ndarray, np.ndarray]:
-            """(grey, valid) of the grid reduced 2^level times: warped at twice that resolution
-            from the frame reduced as much (render_level), then halved as area.Pyramid halves.
-            Warped at the level itself, the far side of an oblique view, where a frame pixel
-            covers several ortho pixels, comes out blurred twice over (a 640 x 360 frame at
-            12 deg roll and 8 deg pitch, level 3: 11.8 grey levels from the reduced whole warp
-            on average; 5.5 this way; 1.6 from two levels finer, for four times the warp)."""
-            from testbench.navigation.ismn.area import pyramid
-
-            sub = max(0, level - COARSE_OVERSAMPLE_LEVELS)
-            return pyramid(*render_level(sub), level - sub)[level - sub] if sub > 0 else pyramid(*render(0, 0, W_o, H_o), level)[level]
-
+        warp = _FrameWarp(small, H_small, shape, geometry, relief)
         K_full = self.camera.K
 
         def cam_xy_full(cols, rows, _h=height_fn):
@@ -224,8 +132,8 @@ class Orthorectifier:
         S = np.array([[Ssx, 0, 0.5 * Ssx - 0.5], [0, Ssy, 0.5 * Ssy - 0.5], [0, 0, 1.0]])
         S_inv = np.linalg.inv(S)
         return OrthoFrame((H_o, W_o), float(north0_m), float(east0_m), float(g), (int(origin_px[0]), int(origin_px[1])),
-                          S_inv @ H_small, cam_xy_full, ground_down_m, render=render, render_coarse=render_coarse,
-                          surely_valid=surely_valid)
+                          S_inv @ H_small, cam_xy_full, ground_down_m, render=warp.render,
+                          render_coarse=warp.render_coarse, surely_valid=warp.surely_valid)
 
     def _relief_grid(self, K_s, c, R_cn, north0, east0, g, shape, height_fn, step=8):
         """(u, v, step): camera coordinates (small frame px, float32 (nr, nc)) of the ortho
@@ -269,6 +177,115 @@ class Orthorectifier:
         nr, nc = -(-H_o // step), -(-W_o // step)
         cc, rr = np.meshgrid((np.arange(nc) + 0.5) * step - 0.5, (np.arange(nr) + 0.5) * step - 0.5)
         return ok(cc.ravel(), rr.ravel()).reshape(nr, nc), step
+
+
+class _FrameWarp:
+    """Warps one prepared frame onto regions and reduced levels of an ortho grid (what an
+    OrthoFrame asks for).
+
+    small (h, w) uint8: the prepared frame (grey >= 1, 0 meaning outside); H_small (3, 3):
+    ortho px -> small-frame px over the ground plane; shape (H, W) of the grid; geometry:
+    (block grid, step) of Orthorectifier._geometry_grid or None (all ground usable); relief:
+    (u, v, step) of Orthorectifier._relief_grid or None (the plane).
+    """
+
+    def __init__(self, small: np.ndarray, H_small: np.ndarray, shape: tuple[int, int], geometry, relief):
+        self.small, self.H_small, self.shape = small, H_small, shape
+        self.geometry, self.relief = geometry, relief
+        self._frame_levels = {0: small}
+        # The homography's entries as Python floats, for surely_valid's corner tests.
+        self._h = H_small.tolist()
+
+    def frame_level(self, level: int) -> np.ndarray:
+        """The prepared frame reduced 2^level times (2 x 2 means of its largest even crop)."""
+        out = self._frame_levels.get(level)
+        if out is None:
+            up = self.frame_level(level - 1)
+            h, w = up.shape[0] // 2 * 2, up.shape[1] // 2 * 2
+            out = self._frame_levels[level] = cv2.resize(up[:h, :w], (w // 2, h // 2), interpolation=cv2.INTER_AREA)
+        return out
+
+    def render(self, x0: int, y0: int, w: int, h: int) -> tuple[np.ndarray, np.ndarray]:
+        """(grey (h, w) uint8, valid bool) of full-resolution columns x0:x0+w, rows y0:y0+h."""
+        if self.relief is None:
+            T = np.array([[1.0, 0.0, x0], [0.0, 1.0, y0], [0.0, 0.0, 1.0]])
+            img = cv2.warpPerspective(self.small, self.H_small @ T, (w, h), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+                                      borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        else:
+            map_x, map_y = _relief_maps(self.relief, x0, y0, w, h, self.shape)
+            img = cv2.remap(self.small, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        valid = img > 0
+        if self.geometry is not None:
+            valid &= _grid_crop(self.geometry, x0, y0, w, h)
+        return img, valid
+
+    def surely_valid(self, x0: int, y0: int, w: int, h: int) -> bool:
+        """True when every pixel of the region is valid, from its corners alone (plane case):
+        the pixels seen in the frame's interior (a sample between four frame pixels, all >= 1)
+        are the projective preimage of a rectangle, which is convex, so the region lies in it
+        when its corners do; and the geometry mask is constant on its blocks. False: not known."""
+        if self.relief is not None:
+            return False
+        if self.geometry is not None:
+            grid, step = self.geometry
+            if not grid[y0 // step:(y0 + h - 1) // step + 1, x0 // step:(x0 + w - 1) // step + 1].all():
+                return False
+        (h00, h01, h02), (h10, h11, h12), (h20, h21, h22) = self._h
+        h_small, w_small = self.small.shape[:2]
+        for x in (x0, x0 + w - 1):  # Python floats: ~80 candidate tiles a frame ask
+            for y in (y0, y0 + h - 1):
+                z = h20 * x + h21 * y + h22
+                if not z > 0:
+                    return False
+                u, v = (h00 * x + h01 * y + h02) / z, (h10 * x + h11 * y + h12) / z
+                if not (0.0 <= u <= w_small - 1 and 0.0 <= v <= h_small - 1):
+                    return False
+        return True
+
+    def render_level(self, level: int) -> tuple[np.ndarray, np.ndarray]:
+        """(grey, valid) of the whole grid reduced 2^level times, warped from the frame reduced
+        as much: pixel (X, Y) is the ortho point (s X + (s - 1) / 2, s Y + (s - 1) / 2), and
+        pixel u of the reduced frame is (u + 1/2) / s - 1/2 of the prepared one."""
+        s = 2**level
+        h, w = self.shape[0] >> level, self.shape[1] >> level
+        src = self.frame_level(level)
+        S = np.array([[1.0 / s, 0.0, 0.5 / s - 0.5], [0.0, 1.0 / s, 0.5 / s - 0.5], [0.0, 0.0, 1.0]])
+        if self.relief is None:
+            T = np.array([[s, 0.0, 0.5 * (s - 1)], [0.0, s, 0.5 * (s - 1)], [0.0, 0.0, 1.0]])
+            img = cv2.warpPerspective(src, S @ self.H_small @ T, (w, h), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+                                      borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        else:
+            map_x, map_y = _relief_maps(self.relief, 0, 0, w, h, self.shape, level)
+            img = cv2.remap(src, map_x / s + (0.5 / s - 0.5), map_y / s + (0.5 / s - 0.5), cv2.INTER_LINEAR,
+                            borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        # A reduced pixel is valid when all it covers is: at the frame's edge the warp mixes in
+        # the black outside over one reduced pixel, so one is eroded away (the grid's outer ring
+        # too, where the frame may end inside the last reduced pixel).
+        valid = cv2.erode((img > 0).view(np.uint8), np.ones((3, 3), np.uint8),
+                          borderType=cv2.BORDER_CONSTANT, borderValue=0).view(bool)
+        if self.geometry is not None:
+            grid, step = self.geometry
+            rows, cols = np.arange(h) * s, np.arange(w) * s
+            ok = np.ones((h, w), bool)
+            for r in (rows, rows + s - 1):  # a reduced pixel's corner blocks
+                for q in (cols, cols + s - 1):
+                    ok &= grid[np.ix_(r // step, q // step)]
+            valid &= ok
+        return img, valid
+
+    def render_coarse(self, level: int) -> tuple[np.ndarray, np.ndarray]:
+        """(grey, valid) of the grid reduced 2^level times: warped COARSE_OVERSAMPLE_LEVELS
+        finer from the frame reduced as much (render_level), then halved as area.Pyramid halves.
+        Warped at the level itself, the far side of an oblique view, where a frame pixel covers
+        several ortho pixels, comes out blurred twice over (a 640 x 360 frame at 12 deg roll and
+        8 deg pitch, level 3: 11.8 grey levels from the reduced whole warp on average; 5.5 one
+        level finer; 1.6 two levels finer, for four times the warp)."""
+        from testbench.navigation.ismn.area import pyramid
+
+        sub = max(0, level - COARSE_OVERSAMPLE_LEVELS)
+        if sub == 0:
+            return pyramid(*self.render(0, 0, self.shape[1], self.shape[0]), level)[level]
+        return pyramid(*self.render_level(sub), level - sub)[level - sub]
 
 
 def _grid_crop(grid_step: tuple[np.ndarray, int], x0: int, y0: int, w: int, h: int) -> np.ndarray:
