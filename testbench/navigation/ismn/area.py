@@ -63,14 +63,15 @@ class Pyramid:
     Levels are made on demand, each from the level above it by an exact-factor-2 INTER_AREA
     resize of its largest even crop (the 2 x 2 mean: a level costs a quarter of the one before,
     so a coarse level does not cost a pass over the full-resolution image); a reduced pixel is
-    valid only when every pixel it covers is. pyr[l] -> (grey uint8, valid).
+    valid only when every pixel it covers is. pyr[l] -> (grey uint8, valid). valid None: an
+    image without a mask (every level's valid is None, and no mask is reduced).
 
     source: optional callable level -> (grey, valid) or None that may serve a level already
     made elsewhere (a crop of a cached map's pyramid, MapWindowCache.pyramid_level): it must be
     what this class would make.
     """
 
-    def __init__(self, img: np.ndarray, valid: np.ndarray, levels: int, source=None):
+    def __init__(self, img: np.ndarray, valid: np.ndarray | None, levels: int, source=None):
         self._levels: dict[int, tuple[np.ndarray, np.ndarray]] = {0: (img, valid)}
         self._v255: dict[int, np.ndarray] = {}
         self._source = source
@@ -95,10 +96,13 @@ class Pyramid:
             if out is not None:
                 self._levels[lev] = out
         if out is None:
-            img, _ = self[lev - 1]
-            v255 = self._valid255(lev - 1)
+            img, valid = self[lev - 1]
             h, w = (img.shape[0] // 2) * 2, (img.shape[1] // 2) * 2
             g = cv2.resize(img[:h, :w], (w // 2, h // 2), interpolation=cv2.INTER_AREA)
+            if valid is None:
+                out = self._levels[lev] = (g, None)
+                return out
+            v255 = self._valid255(lev - 1)
             v8 = cv2.resize(v255[:h, :w], (w // 2, h // 2), interpolation=cv2.INTER_AREA)
             self._v255[lev] = cv2.compare(v8, 255, cv2.CMP_EQ)  # 255 where all four were valid
             out = self._levels[lev] = (g, v8 == 255)

@@ -192,18 +192,17 @@ class _FrameWarp:
     def __init__(self, small: np.ndarray, H_small: np.ndarray, shape: tuple[int, int], geometry, relief):
         self.small, self.H_small, self.shape = small, H_small, shape
         self.geometry, self.relief = geometry, relief
-        self._frame_levels = {0: small}
+        self._frame_levels = None  # area.Pyramid of the frame (no mask), made when first asked
         # The homography's entries as Python floats, for surely_valid's corner tests.
         self._h = H_small.tolist()
 
     def frame_level(self, level: int) -> np.ndarray:
-        """The prepared frame reduced 2^level times (2 x 2 means of its largest even crop)."""
-        out = self._frame_levels.get(level)
-        if out is None:
-            up = self.frame_level(level - 1)
-            h, w = up.shape[0] // 2 * 2, up.shape[1] // 2 * 2
-            out = self._frame_levels[level] = cv2.resize(up[:h, :w], (w // 2, h // 2), interpolation=cv2.INTER_AREA)
-        return out
+        """The prepared frame reduced 2^level times (area.Pyramid: 2 x 2 means)."""
+        if self._frame_levels is None:
+            from testbench.navigation.ismn.area import Pyramid
+
+            self._frame_levels = Pyramid(self.small, None, 8)
+        return self._frame_levels[level][0]
 
     def render(self, x0: int, y0: int, w: int, h: int) -> tuple[np.ndarray, np.ndarray]:
         """(grey (h, w) uint8, valid bool) of full-resolution columns x0:x0+w, rows y0:y0+h."""

@@ -99,20 +99,12 @@ class TileMatches:
         return TileMatches(z, z, np.zeros(0), np.zeros(0))
 
 
-def tile_grid(valid0, coarse_feat: np.ndarray, sL: int, tile_px: int, nx: int, ny: int,
+def tile_grid(ortho, coarse_feat: np.ndarray, sL: int, tile_px: int, nx: int, ny: int,
               max_tiles: int, min_valid: float = 0.9) -> tuple[int, list[tuple[int, int]]]:
     """(tile side T0, [(x0, y0)]) of up to max_tiles candidate tiles on an nx x ny grid over the
-    ortho frame, mostly valid, ranked by texture (variance of the coarse feature).
-
-    valid0: the frame's full-resolution valid mask (H, W) bool, or an OrthoFrame (its tiles'
-    masks are warped as they are asked for)."""
-    Ho, Wo = valid0.shape
-    if isinstance(valid0, np.ndarray):
-        def share(x0, y0, T):
-            return _valid_share(valid0[y0:y0 + T, x0:x0 + T])
-    else:
-        def share(x0, y0, T):
-            return valid0.valid_share(x0, y0, T, T)
+    ortho frame (an OrthoFrame: it answers each candidate's valid share), mostly valid, ranked
+    by texture (variance of the coarse feature)."""
+    Ho, Wo = ortho.shape
     T0 = int(min(tile_px, Wo // 2, Ho // 2)) // 4 * 4
     if T0 < 16:
         return T0, []
@@ -121,7 +113,7 @@ def tile_grid(valid0, coarse_feat: np.ndarray, sL: int, tile_px: int, nx: int, n
         for i in range(nx):
             x0 = int(round(i * (Wo - T0) / max(1, nx - 1)))
             y0 = int(round(j * (Ho - T0) / max(1, ny - 1)))
-            if share(x0, y0, T0) < min_valid:
+            if ortho.valid_share(x0, y0, T0, T0) < min_valid:
                 continue
             c = coarse_feat[y0 // sL:(y0 + T0) // sL + 1, x0 // sL:(x0 + T0) // sL + 1]
             cands.append((_std(c) ** 2 if c.size else 0.0, x0, y0))
