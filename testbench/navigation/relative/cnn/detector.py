@@ -50,6 +50,9 @@ class CnnDetector(Detector):
     heatmap threshold; nms_iou / nms_centre_px: suppression of duplicates (IoU above, or
     centres closer than); tile_px / tile_overlap_px: full-frame tiling; threads: torch CPU
     threads (None: leave torch's setting); device: only "cpu" is supported.
+
+    `model` is the TinyCenterNet as loaded (or given); detection runs an inference copy of it
+    made at construction (cnn.model.inference_copy), so later changes to `model` are not seen.
     """
 
     class Params(ParamsModel):
@@ -73,7 +76,7 @@ class CnnDetector(Detector):
                  model: Any = None, **_: Any):
         import torch
 
-        from testbench.navigation.relative.cnn.model import load_weights
+        from testbench.navigation.relative.cnn.model import inference_copy, load_weights
 
         self.params = params or self.Params()
         if self.params.threads is not None:
@@ -94,6 +97,7 @@ class CnnDetector(Detector):
             if not p.is_file():
                 raise InputError(f"detector weights '{self.params.weights}': file not found")
             self.model = load_weights(p)
+        self._net = inference_copy(self.model)  # what detect() runs: BN folded, channels-last
 
     @classmethod
     def from_model(cls, model, params: "CnnDetector.Params | None" = None) -> "CnnDetector":
@@ -111,7 +115,7 @@ class CnnDetector(Detector):
         if ph or pw:  # pad by edge replication to whole cells
             image = np.pad(image, ((0, ph), (0, pw), (0, 0)), mode="edge")
         with torch.inference_mode():
-            out = self.model(to_tensor(image))
+            out = self._net(to_tensor(image))
         d = decode(out, self.params.score_min)[0]
         return d[(d[:, 0] < w) & (d[:, 1] < h)]
 

@@ -14,6 +14,8 @@ Pixel coordinates: integers at pixel centres; u = (j + du) * 4 - 0.5.
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import torch
 from torch import nn
@@ -50,11 +52,34 @@ class TinyCenterNet(nn.Module):
         return self.head(self.backbone(x - 0.5))
 
 
+def inference_copy(model: TinyCenterNet) -> nn.Module:
+    """A copy of `model` for inference only, the same function to float rounding (~1e-5 on
+    the logits): each eval-mode BatchNorm folded into the convolution before it
+    (torch.nn.utils.fusion), weights in channels-last layout, parameters frozen. `model` is
+    left untouched (training goes on with it).
+
+    Why: on one CPU core oneDNN's channels-last convolutions run these small layers 1.4-2x
+    faster than the default layout, and a folded BatchNorm is one pass less over each
+    activation. Its inputs should be channels-last too, as `to_tensor` makes them."""
+    from torch.nn.utils.fusion import fuse_conv_bn_eval
+
+    m = copy.deepcopy(model).eval()
+    for block in m.backbone:  # each block is _cbr's (Conv2d, BatchNorm2d, ReLU)
+        block[0] = fuse_conv_bn_eval(block[0], block[1])
+        block[1] = nn.Identity()
+    m = m.to(memory_format=torch.channels_last)
+    for p in m.parameters():
+        p.requires_grad_(False)
+    return m
+
+
 def to_tensor(images: np.ndarray) -> torch.Tensor:
-    """(N, H, W, 3) or (H, W, 3) uint8 RGB -> (N, 3, H, W) float32 in [0, 1]."""
+    """(N, H, W, 3) or (H, W, 3) uint8 RGB -> (N, 3, H, W) float32 in [0, 1], its memory in
+    the image's own NHWC order (channels-last strides, the layout `inference_copy` wants)."""
     a = np.asarray(images)
     if a.ndim == 3:
         a = a[None]
+    # The permuted view has NHWC strides; float() preserves them (memory_format=preserve_format).
     return torch.from_numpy(np.ascontiguousarray(a)).permute(0, 3, 1, 2).float().div_(255.0)
 
 
