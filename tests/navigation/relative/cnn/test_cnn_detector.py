@@ -12,7 +12,7 @@ from testbench.navigation.relative.cnn import dataset  # noqa: E402
 from testbench.navigation.relative.cnn.detector import CnnDetector, packaged_weights_path  # noqa: E402
 from testbench.navigation.relative.cnn.evaluate import evaluate_samples, match  # noqa: E402
 from testbench.navigation.relative.cnn.model import (  # noqa: E402
-    STRIDE, TinyCenterNet, decode, encode_targets, nms)
+    STRIDE, TinyCenterNet, decode, encode_targets, inference_copy, nms, to_tensor)
 
 # One held-out world, small and coarse so that the test renders in a few seconds.
 SMALL = dataset.DataSettings(crop_px=128, worlds=(dataset.EVAL_WORLDS[0], dataset.EVAL_WORLDS[2]),
@@ -30,6 +30,29 @@ def test_output_shapes():
         for h, w in ((64, 64), (96, 128), (100, 60)):
             out = m(torch.zeros(2, 3, h, w))
             assert out.shape == (2, 5, -(-h // STRIDE), -(-w // STRIDE))
+
+
+def test_inference_copy_same_function():
+    """The detector's inference copy (BatchNorm folded, channels-last) computes what the
+    network does, to float rounding, and leaves the network as it was."""
+    torch.manual_seed(3)
+    m = TinyCenterNet()
+    with torch.no_grad():  # BatchNorm statistics away from the identity, so folding matters
+        for mod in m.modules():
+            if isinstance(mod, torch.nn.BatchNorm2d):
+                mod.running_mean.uniform_(-0.5, 0.5)
+                mod.running_var.uniform_(0.5, 2.0)
+                mod.weight.uniform_(0.5, 1.5)
+                mod.bias.uniform_(-0.2, 0.2)
+    m.eval()
+    fast = inference_copy(m)
+    assert sum(isinstance(x, torch.nn.BatchNorm2d) for x in m.modules()) == 7
+    assert not any(isinstance(x, torch.nn.BatchNorm2d) for x in fast.modules())
+    img = np.random.default_rng(0).integers(0, 256, (1, 70, 90, 3), dtype=np.uint8)
+    with torch.inference_mode():
+        ref, out = m(to_tensor(img)), fast(to_tensor(img))
+    assert out.shape == ref.shape
+    assert float((out - ref).abs().max()) < 1e-4 * max(1.0, float(ref.abs().max()))
 
 
 def test_targets_decode_round_trip():
