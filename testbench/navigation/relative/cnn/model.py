@@ -60,7 +60,7 @@ def inference_copy(model: TinyCenterNet) -> nn.Module:
 
     Why: a folded BatchNorm is one pass less over each activation, and with weights and
     inputs both channels-last oneDNN runs the convolutions without reordering either; on one
-    CPU core a forward pass takes 1.15-1.25x less time than the model as loaded (96-544 px
+    CPU core a forward pass runs 1.15-1.25x faster than the model as loaded (96-544 px
     crops, docs/measurements.md). Its inputs should be channels-last, as `to_tensor` makes them."""
     from torch.nn.utils.fusion import fuse_conv_bn_eval
 
