@@ -225,12 +225,14 @@ def _fit_affine(o, m, w):
     o_bar, m_bar = ws @ o, ws @ m
     oc = o - o_bar
     ocw = oc * w[:, None]
-    try:
-        A = np.linalg.solve(ocw.T @ oc, ocw.T @ (m - m_bar)).T  # (2, 2): m - m_bar ~ A (o - o_bar)
-    except np.linalg.LinAlgError:
+    M = ocw.T @ oc  # (2, 2) weighted scatter of the tile positions
+    # Collinear tiles: exactly singular when they share a row, merely ill-conditioned (rounding)
+    # on a diagonal, where a solve would return a huge A instead of failing.
+    if not M[0, 0] * M[1, 1] - M[0, 1] ** 2 > 1e-9 * (M[0, 0] + M[1, 1]) ** 2:
         X = np.c_[o, np.ones(len(o))] * np.sqrt(w)[:, None]
         sol, *_ = np.linalg.lstsq(X, m * np.sqrt(w)[:, None], rcond=None)
         return np.vstack([sol.T, [0.0, 0.0, 1.0]])
+    A = np.linalg.solve(M, ocw.T @ (m - m_bar)).T  # (2, 2): m - m_bar ~ A (o - o_bar)
     return np.array([[A[0, 0], A[0, 1], m_bar[0] - A[0] @ o_bar],
                      [A[1, 0], A[1, 1], m_bar[1] - A[1] @ o_bar], [0.0, 0.0, 1.0]])
 
