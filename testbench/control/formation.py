@@ -23,7 +23,9 @@ its slot by omega d / k_slot, 6.5 m at 0.5 deg/s).
 then slew-limited to max_accel_mps2 (a jump of an estimate must not become a 40 degree tilt:
 the vehicle's own cameras would lose their tracks, and its attitude errors enter the bearings).
 The course chi: from the layout of the followed neighbours when they are spread enough
-(geometry_course), else from their low-passed velocity.
+(geometry_course); with a single neighbour ahead that is not the leader, from the layout of it
+and the neighbours beside us (their slots level with ours); else from the followed neighbours'
+low-passed velocity.
 "Fresh" neighbours: estimates younger than max_age_s whose 1-sigma position uncertainty is
 below max_sigma_m (an estimate held by ranges alone drifts across the line of sight).
 With nobody fresh in sight it holds its last course and speed at its last altitude.
@@ -180,8 +182,10 @@ class FormationLaw:
             self.v_out = vel.copy()
         fresh = [e for k, e in (table or {}).items()
                  if k in p.slots and k != self.self_id and t_s - e.t_s <= p.max_age_s and e.sigma_m <= p.max_sigma_m]
+        beside = fresh  # neighbours whose slot is not behind ours (the course's fallback layout)
         if p.ahead_only:
             ahead = [e for e in fresh if p.slots[e.peer_id][0] > self.s_self[0] + 1.0]
+            beside = [e for e in fresh if p.slots[e.peer_id][0] > self.s_self[0] - 1.0]
             fresh = ahead or fresh
         self.n_seen = len(fresh)
         if not fresh:  # hold course, speed and altitude
@@ -205,6 +209,13 @@ class FormationLaw:
         course = None
         om_max = math.radians(p.max_course_rate_deg_s)
         geo = geometry_course(fresh, p.slots, p.min_geometry_spread_m)
+        if geo is None and len(beside) > len(fresh) and all(e.peer_id != p.leader_id for e in fresh):
+            # One neighbour ahead and not the leader: the layout of it and the ones beside us
+            # still gives the formation's orientation, where that neighbour's velocity does not
+            # (in a turn it flies 20 deg off the leader's course at 173 m from it). The coast
+            # below ran out after 20 s on one neighbour, and the course then swung to that
+            # velocity at the slew limit (LED run: 15 m off the slot).
+            geo = geometry_course(beside, p.slots, p.min_geometry_spread_m)
         if geo is not None:
             # The followed neighbours' layout gives the formation's orientation directly.
             g = min(1.0, dt / p.geometry_tau_s) if p.geometry_tau_s > 0 else 1.0

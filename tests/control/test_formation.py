@@ -232,3 +232,28 @@ def test_course_coasts_on_its_rate_when_the_layout_is_lost():
         final[coast] = math.degrees(law.course_lead) - math.degrees(rate * 29.98)
     assert abs(final[20.0]) < 0.5  # coasting at the course rate
     assert final[0.0] == pytest.approx(20.0, abs=1.0)  # the neighbour's velocity course
+
+
+def test_course_from_the_layout_beside_when_one_neighbour_is_ahead():
+    """The formation turns at 0.5 deg/s. Of our neighbours only `a` is ahead, and it flies 20
+    deg off the course (off the turn's pivot); `c` is beside us, in our row. The layout of `a`
+    and `c` keeps the course for as long as the turn lasts; with `a` alone the coast runs out
+    after course_coast_s and the course swings to a's velocity."""
+    from testbench.control.formation import formation_rotation
+
+    slots = {"lead": (0.0, 0.0, 0.0), "a": (-86.6, -50.0, 0.0), "c": (-173.2, 0.0, 0.0), "me": (-173.2, 100.0, 0.0)}
+    rate = math.radians(0.5)
+    final = {}
+    for peers in ("ac", "a"):
+        law = FormationLaw(FormationParams(slots=slots, leader_id="lead", course_coast_s=20.0, ff_tau_s=0.5,
+                                           geometry_tau_s=1.0), "me")
+        for k in range(3000):  # 60 s at 50 Hz
+            t = 0.02 * k
+            chi = rate * t
+            R = formation_rotation(chi)
+            v = 4.0 * np.array([math.cos(chi + math.radians(20.0)), math.sin(chi + math.radians(20.0)), 0.0])
+            table = {p: _rel(p, R @ (np.asarray(slots[p]) - slots["me"]), w=v, t=t) for p in peers}
+            law.velocity_command(t, _est((0, 0, -100.0), (1e-9, 0, 0), t=t), table)
+        final[peers] = math.degrees(law.course_lead) - math.degrees(rate * 59.98)
+    assert abs(final["ac"]) < 0.5
+    assert abs(final["a"]) > 5.0
