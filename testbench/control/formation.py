@@ -210,8 +210,9 @@ class FormationLaw:
         om_max = math.radians(p.max_course_rate_deg_s)
         geo = geometry_course(fresh, p.slots, p.min_geometry_spread_m)
         if geo is None and len(beside) > len(fresh) and all(e.peer_id != p.leader_id for e in fresh):
-            # One neighbour ahead and not the leader: the layout of it and the ones beside us
-            # still gives the formation's orientation, where that neighbour's velocity does not
+            # No layout from the neighbours ahead (one of them, or too close together), and the
+            # leader not among them: the layout of those and the ones beside us still gives the
+            # formation's orientation, where a neighbour's velocity does not
             # (in a turn it flies 20 deg off the leader's course at 173 m from it). The coast
             # below ran out after 20 s on one neighbour, and the course then swung to that
             # velocity at the slew limit (LED run: 15 m off the slot).
