@@ -23,9 +23,9 @@ its slot by omega d / k_slot, 6.5 m at 0.5 deg/s).
 then slew-limited to max_accel_mps2 (a jump of an estimate must not become a 40 degree tilt:
 the vehicle's own cameras would lose their tracks, and its attitude errors enter the bearings).
 The course chi: from the layout of the followed neighbours when they are spread enough
-(geometry_course); with a single neighbour ahead that is not the leader, from the layout of it
-and the neighbours beside us (their slots level with ours); else from the followed neighbours'
-low-passed velocity.
+(geometry_course); when the neighbours ahead give no layout (one of them, or too close together)
+and the leader is not among them, from the layout of those and the neighbours beside us (their
+slots level with ours); else from the followed neighbours' low-passed velocity.
 "Fresh" neighbours: estimates younger than max_age_s whose 1-sigma position uncertainty is
 below max_sigma_m (an estimate held by ranges alone drifts across the line of sight).
 With nobody fresh in sight it holds its last course and speed at its last altitude.
