@@ -75,18 +75,42 @@ class AssociationRules:
         if settled_only and f.counters["bearing_accepted"] < 10:
             return float("inf")
         dt = max(b.t_s - f.t_s, 0.0)
-        x = f.x[:3] + dt * f.x[3:]
         P = f.P[:3, :3] + dt * (f.P[:3, 3:] + f.P[3:, :3]) + dt * dt * f.P[3:, 3:]
         if settled_only and np.sqrt(max(np.trace(P), 0.0)) > self.assoc_max_sigma_m:
             return float("inf")
-        d = (x - b.cam_offset_ned_m) @ b.R_nc
-        if d[2] <= 0.2 * np.linalg.norm(d):
-            return float("inf")  # not in front of this camera
+        m_pred = self.predicted_m_xy(f, b)
+        if m_pred is None:
+            return float("inf")
         R = _I2 * ((self.bearing_sigma_px / b.focal_px) ** 2 + b.att_sigma_rad**2)
         _, H = f.bearing_model(b.R_nc, b.cam_offset_ned_m)
         S = H @ f.P @ H.T + R
-        y = b.m_xy - np.array([d[0] / d[2], d[1] / d[2]])
+        y = b.m_xy - m_pred
         return float(y @ np.linalg.solve(S, y))
+
+    @staticmethod
+    def predicted_m_xy(f: NeighbourFilter, b: Bearing) -> np.ndarray | None:
+        """(2,) normalised image coordinates at which f's estimate, predicted to b.t_s, lies
+        seen from b's camera (R_nc, cam_offset_ned_m); None when it is not in front."""
+        dt = max(b.t_s - f.t_s, 0.0)
+        d = (f.x[:3] + dt * f.x[3:] - b.cam_offset_ned_m) @ b.R_nc
+        if d[2] <= 0.2 * np.linalg.norm(d):
+            return None  # not in front of this camera
+        return np.array([d[0] / d[2], d[1] / d[2]])
+
+    def nearest_part(self, f: NeighbourFilter, b: Bearing, parts_m_xy: np.ndarray) -> int | None:
+        """Index of the part (parts_m_xy (k, 2), normalised) nearest where f's settled estimate
+        predicts b, or None (f not settled, or not in front).
+
+        A detection of several vehicles merged on one line of sight (Detection.parts_px) is
+        centred between them, a few pixels off each: its bearing drags an estimate across the
+        line of sight. The part the estimate predicts is its own vehicle's LEDs, the others
+        5-15 px away, far beyond a settled estimate's sub-pixel prediction error."""
+        if f.counters["bearing_accepted"] < 10 or np.sqrt(max(float(np.trace(f.P[:3, :3])), 0.0)) > self.assoc_max_sigma_m:
+            return None
+        m_pred = self.predicted_m_xy(f, b)
+        if m_pred is None:
+            return None
+        return int(np.argmin(np.linalg.norm(np.asarray(parts_m_xy, float) - m_pred, axis=1)))
 
     def gates(self, f: NeighbourFilter, b: Bearing) -> bool:
         """Whether a settled estimate f predicts bearing b within its gate."""

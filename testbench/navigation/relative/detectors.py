@@ -7,7 +7,7 @@ full-frame coordinates (the oracle needs the frame's truth annotations there).
 
 from __future__ import annotations
 
-from typing import Any, Sequence
+from typing import Any, Literal, Sequence
 
 import cv2
 import numpy as np
@@ -40,7 +40,14 @@ class LedDetector(Detector):
        all five, beyond 2 px 13 % -> 7 %), but the tracks then split and merge as the two
        anchors' blobs part and join from frame to frame, and the whole run is worse (300 s:
        relnav mean 0.186 -> 0.193 m, max 6.8 -> 11.0 m, track-frame IDs 0.991 -> 0.976,
-       formation RMS 2.6 -> 2.9 m, 2026-11-25).
+       formation RMS 2.6 -> 2.9 m, 2026-11-25). With anchor_split "parts" the group stays one
+       detection (one track, one blink level) and reports each anchor's share of its blobs as
+       a part (Detection.parts_px, its LED centroid): the relative-navigation aid takes the
+       bearing of the part its estimate of the track's neighbour predicts. Off in the shipped
+       scenarios too: paper swarm, 300 s (2026-11-26), relnav mean 0.178 -> 0.178 m, max 5.5
+       -> 4.5 m, rows above 1 m 175 -> 242, formation RMS 2.26 -> 2.34 m; the rows under the
+       right ID err as before (0.143 -> 0.139 m at 30-120 s, 0.137 -> 0.140 m at 120-200 s):
+       the detections that feed them are seldom merged ones (3 % of the bearings took a part).
     4. Per group: brightness-weighted LED centroid (the vehicle's centre), led_level = sum of
        value/255 over the group's LED pixels (rises with the number of lit LEDs: the blink
        decoder thresholds it) or, with data_hue_deg (anchor LED of another colour than the
@@ -67,6 +74,7 @@ class LedDetector(Detector):
         data_hue_tol_deg: float = pydantic.Field(25.0, gt=0, le=90)
         anchor_hue_deg: float | None = None
         anchor_hue_tol_deg: float = pydantic.Field(25.0, gt=0, le=90)
+        anchor_split: Literal["detections", "parts"] = "detections"
 
     def __init__(self, params: "LedDetector.Params | None" = None, *, ctx: BuildContext | None = None, **_: Any):
         self.params = params or self.Params()
@@ -106,33 +114,48 @@ class LedDetector(Detector):
         # its algorithm and thread count, and the detections' order reaches the record.
         keep.sort(key=lambda i: (stats[i, cv2.CC_STAT_TOP], stats[i, cv2.CC_STAT_LEFT]))
         groups = _group(cents[keep], p.group_px)
-        if p.anchor_hue_deg is not None:
+        split_groups = p.anchor_hue_deg is not None and p.anchor_split == "detections"
+        if split_groups:
             groups = [sub for g in groups for sub in self._split_by_anchor(g, keep, labels, stats, cents, hsv, (bx, by))]
         grey = None
         out = []
         for members in groups:
             comp = [keep[i] for i in members]
-            x0 = min(stats[c, cv2.CC_STAT_LEFT] for c in comp)
-            y0 = min(stats[c, cv2.CC_STAT_TOP] for c in comp)
-            x1 = max(stats[c, cv2.CC_STAT_LEFT] + stats[c, cv2.CC_STAT_WIDTH] for c in comp)
-            y1 = max(stats[c, cv2.CC_STAT_TOP] + stats[c, cv2.CC_STAT_HEIGHT] for c in comp)
-            sub = labels[y0 - by:y1 - by, x0 - bx:x1 - bx]
-            gm = np.isin(sub, comp)
-            w = hsv[y0:y1, x0:x1, 2].astype(np.float64) / 255.0 * gm
-            tot = float(w.sum())
-            level = tot
-            if p.data_hue_deg is not None:
-                dh = _hue_distance_deg(hsv[y0:y1, x0:x1, 0], p.data_hue_deg)
-                level = 0.05 + float((w * (dh <= p.data_hue_tol_deg)).sum())
-            vv, uu = np.mgrid[y0:y1, x0:x1]
-            cu, cv_ = float((w * uu).sum() / tot), float((w * vv).sum() / tot)
+            (x0, y0, x1, y1), (cu, cv_), level, n_px = self._weighted_leds(comp, labels, stats, hsv, (bx, by))
+            parts = np.zeros((0, 2))
+            if p.anchor_hue_deg is not None and not split_groups:
+                subs = self._split_by_anchor(members, keep, labels, stats, cents, hsv, (bx, by))
+                if len(subs) > 1:
+                    parts = np.array([self._weighted_leds([keep[i] for i in g], labels, stats, hsv, (bx, by))[1]
+                                      for g in subs], float)
             if grey is None:
                 grey = cv2.cvtColor(image, cv2.COLOR_RGB2GRAY)
             box = self._body_box(grey, mask, (x0, y0, x1, y1))
             leds = np.array([cents[c] for c in comp], float).reshape(-1, 2)
-            score = float(1.0 - np.exp(-float(gm.sum()) / 3.0))
-            out.append(Detection(box, (cu, cv_), score, "vehicle", leds, None, level))
+            score = float(1.0 - np.exp(-float(n_px) / 3.0))
+            out.append(Detection(box, (cu, cv_), score, "vehicle", leds, None, level, parts))
         return out
+
+    def _weighted_leds(self, comp: list[int], labels: np.ndarray, stats: np.ndarray, hsv: np.ndarray,
+                       origin: tuple[int, int]) -> tuple[tuple[int, int, int, int], tuple[float, float], float, int]:
+        """Of the LED components `comp` (labels of the lit bounding box at `origin`): their box
+        (x0, y0, x1, y1) px, x1/y1 exclusive; their brightness-weighted centroid (u, v) px; the
+        blink level (class docstring, step 4); their pixel count."""
+        p = self.params
+        bx, by = origin
+        x0 = min(stats[c, cv2.CC_STAT_LEFT] for c in comp)
+        y0 = min(stats[c, cv2.CC_STAT_TOP] for c in comp)
+        x1 = max(stats[c, cv2.CC_STAT_LEFT] + stats[c, cv2.CC_STAT_WIDTH] for c in comp)
+        y1 = max(stats[c, cv2.CC_STAT_TOP] + stats[c, cv2.CC_STAT_HEIGHT] for c in comp)
+        gm = np.isin(labels[y0 - by:y1 - by, x0 - bx:x1 - bx], comp)
+        w = hsv[y0:y1, x0:x1, 2].astype(np.float64) / 255.0 * gm
+        tot = float(w.sum())
+        level = tot
+        if p.data_hue_deg is not None:
+            dh = _hue_distance_deg(hsv[y0:y1, x0:x1, 0], p.data_hue_deg)
+            level = 0.05 + float((w * (dh <= p.data_hue_tol_deg)).sum())
+        vv, uu = np.mgrid[y0:y1, x0:x1]
+        return (x0, y0, x1, y1), (float((w * uu).sum() / tot), float((w * vv).sum() / tot)), level, int(gm.sum())
 
     def _split_by_anchor(self, members: list[int], keep: list[int], labels: np.ndarray, stats: np.ndarray,
                          cents: np.ndarray, hsv: np.ndarray, origin: tuple[int, int]) -> list[list[int]]:

@@ -24,6 +24,10 @@ class Detection:
     on/off when the detector can tell them apart (None otherwise); led_level: a scalar that
     rises with the number of lit LEDs (lit LED count, or summed LED brightness) for blink
     decoding, None when the detector does not see LEDs.
+    parts_px: (k, 2) full-frame pixels of the k >= 2 vehicles the detector found merged in
+    this one detection (the LED centroid of each anchor LED's share of the blobs), empty when
+    it saw one vehicle or cannot tell: the detection stays one for tracking and blink
+    decoding, and the caller may take the bearing of the part its estimate predicts.
     """
 
     bbox_px: tuple[float, float, float, float]
@@ -33,6 +37,7 @@ class Detection:
     led_px: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)), repr=False)
     led_on: tuple[bool, ...] | None = None
     led_level: float | None = None
+    parts_px: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)), repr=False)
 
     @property
     def width_px(self) -> float:
@@ -47,7 +52,7 @@ class Detection:
         u0, v0, u1, v1 = self.bbox_px
         return Detection((u0 + du, v0 + dv, u1 + du, v1 + dv), (self.centre_px[0] + du, self.centre_px[1] + dv),
                          self.score, self.label, np.asarray(self.led_px, float).reshape(-1, 2) + [du, dv],
-                         self.led_on, self.led_level)
+                         self.led_on, self.led_level, np.asarray(self.parts_px, float).reshape(-1, 2) + [du, dv])
 
 
 @dataclass(frozen=True)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
+import pytest
 
 from testbench.navigation.relative.detectors import LedDetector
 
@@ -88,3 +89,29 @@ def test_a_group_with_two_anchors_is_two_vehicles():
     for u, v, c in near:
         _led(one, u, v, colour=c, r=1)
     assert len(LedDetector(LedDetector.Params(data_hue_deg=0.0, anchor_hue_deg=120.0)).detect(one)) == 1
+
+
+def test_a_group_with_two_anchors_reports_its_parts_and_stays_one_detection():
+    """anchor_split "parts": the two vehicles 10 px apart stay one detection (the merged one's
+    centre and blink level, for tracking and decoding) that reports each vehicle's LED centroid
+    as a part, also after the detection is moved to full-frame pixels; one vehicle has none."""
+    img = _frame()
+    near = [(400.0, 300.0, (40, 255, 40)), (396.0, 304.0, (255, 40, 40)), (404.0, 304.0, (255, 40, 40))]
+    far = [(411.0, 301.0, (40, 255, 40)), (413.0, 303.0, (255, 40, 40))]
+    for u, v, c in near + far:
+        _led(img, u, v, colour=c, r=1)
+    (merged,) = LedDetector(LedDetector.Params(data_hue_deg=0.0)).detect(img)
+    parts_det = LedDetector(LedDetector.Params(data_hue_deg=0.0, anchor_hue_deg=120.0, anchor_split="parts"))
+    (det,) = parts_det.detect(img)
+    assert det.centre_px == pytest.approx(merged.centre_px) and det.led_level == pytest.approx(merged.led_level)
+    assert len(merged.parts_px) == 0 and det.parts_px.shape == (2, 2)
+    by_u = det.parts_px[np.argsort(det.parts_px[:, 0])]
+    for part, leds in zip(by_u, (near, far)):
+        assert np.hypot(*(part - np.mean([(u, v) for u, v, _ in leds], axis=0))) < 1.5
+    moved = det.shifted(100.0, -50.0)
+    assert moved.parts_px == pytest.approx(det.parts_px + [100.0, -50.0])
+    one = _frame()
+    for u, v, c in near:
+        _led(one, u, v, colour=c, r=1)
+    (alone,) = parts_det.detect(one)
+    assert len(alone.parts_px) == 0

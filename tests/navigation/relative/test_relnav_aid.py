@@ -186,6 +186,42 @@ def test_a_bearing_another_neighbour_predicts_better_is_not_fused():
     assert aid.assoc.predicted_peer(aid.filters, on_b, {"b"}) is None
 
 
+def test_a_merged_detection_gives_the_bearing_of_the_part_the_estimate_predicts():
+    """Two neighbours on nearly one line of sight, 100 and 200 m out, 1.5 m apart across it
+    (the far one 7 px beside the near one): of a detection holding both, each estimate takes
+    the part at its own vehicle; an estimate not yet settled takes none."""
+    offs = {"near": (100.0, 0.0, 0.0), "far": (200.0, 1.5, 0.0)}
+    aid, R_nc, f_px = _aid_with_filters(offs)
+    parts = np.array([_m(offs["far"]), _m(offs["near"])]) + 0.2 / f_px  # a fifth of a pixel off
+    merged = Bearing(1.05, parts.mean(axis=0), R_nc, np.zeros(3), f_px, 0.0)
+    assert aid.assoc.nearest_part(aid.filters["near"], merged, parts) == 1
+    assert aid.assoc.nearest_part(aid.filters["far"], merged, parts) == 0
+    aid.filters["far"].counters["bearing_accepted"] = 3
+    assert aid.assoc.nearest_part(aid.filters["far"], merged, parts) is None
+
+
+def test_the_bearing_of_a_merged_detection_is_the_part_the_estimate_predicts():
+    """A detection of two neighbours merged (near at 100 m, far 11 px beside it): the near
+    one's bearing and detection centre move to its part, the far one's to the other; a
+    neighbour without an estimate, or a detection of one vehicle, keeps the centre."""
+    from testbench.navigation.relative.types import Detection
+
+    offs = {"near": (100.0, 0.0, 0.0), "far": (200.0, 4.0, 0.0)}
+    aid, R_nc, f_px = _aid_with_filters(offs)
+    cam = aid.cams["front"][0]
+    parts_m = np.array([_m(offs["far"]), _m(offs["near"])])
+    parts_px = np.column_stack([cam.cx + cam.fx * parts_m[:, 0], cam.cy + cam.fy * parts_m[:, 1]])
+    centre = tuple(parts_px.mean(axis=0))
+    det = Detection((centre[0] - 9, centre[1] - 3, centre[0] + 9, centre[1] + 3), centre, 1.0, parts_px=parts_px)
+    merged = Bearing(1.05, parts_m.mean(axis=0), R_nc, np.zeros(3), f_px, 0.0)
+    for peer, k in (("far", 0), ("near", 1)):
+        b, d = aid._on_part(peer, merged, det, cam)
+        assert b.m_xy == pytest.approx(parts_m[k], abs=1e-9) and d.centre_px == pytest.approx(tuple(parts_px[k]))
+    assert aid._on_part("other", merged, det, cam) == (merged, det)
+    single = Detection(det.bbox_px, centre, 1.0)
+    assert aid._on_part("near", merged, single, cam) == (merged, single)
+
+
 def test_a_restart_further_than_the_neighbour_can_have_moved_is_refused():
     """Bearings rejected while ranges agree restart an estimate only near its prediction: a
     track wearing a wrong ID (another vehicle, 200 m away on the other side) must not move it."""
