@@ -103,8 +103,10 @@ class AssociationRules:
 
         A detection of several vehicles merged on one line of sight (Detection.parts_px) is
         centred between them, a few pixels off each: its bearing drags an estimate across the
-        line of sight. The part the estimate predicts is its own vehicle's LEDs, the others
-        5-15 px away, far beyond a settled estimate's sub-pixel prediction error."""
+        line of sight. The part the estimate predicts is its own vehicle's LEDs: the others
+        stand 5-15 px away, and a settled estimate (sigma at most assoc_max_sigma_m, mostly
+        0.1-0.3 m) predicts its own within a few pixels at 100-300 m. The nearest part is
+        taken without a gate: the bearing's own gate in the filter still applies."""
         if f.counters["bearing_accepted"] < 10 or np.sqrt(max(float(np.trace(f.P[:3, :3])), 0.0)) > self.assoc_max_sigma_m:
             return None
         m_pred = self.predicted_m_xy(f, b)
