@@ -72,11 +72,7 @@ class AssociationRules:
     def d2(self, f: NeighbourFilter, b: Bearing, settled_only: bool = True) -> float:
         """Normalised innovation squared of bearing b against f's prediction at b.t_s; inf when
         f is not in front of the camera or, with settled_only, not settled."""
-        if settled_only and f.counters["bearing_accepted"] < 10:
-            return float("inf")
-        dt = max(b.t_s - f.t_s, 0.0)
-        P = f.P[:3, :3] + dt * (f.P[:3, 3:] + f.P[3:, :3]) + dt * dt * f.P[3:, 3:]
-        if settled_only and np.sqrt(max(np.trace(P), 0.0)) > self.assoc_max_sigma_m:
+        if settled_only and not self.settled(f, b.t_s):
             return float("inf")
         m_pred = self.predicted_m_xy(f, b)
         if m_pred is None:
@@ -86,6 +82,15 @@ class AssociationRules:
         S = H @ f.P @ H.T + R
         y = b.m_xy - m_pred
         return float(y @ np.linalg.solve(S, y))
+
+    def settled(self, f: NeighbourFilter, t_s: float) -> bool:
+        """Whether f is settled at t_s: 10 bearings fused, and its position sigma (sqrt trace,
+        predicted to t_s) at most assoc_max_sigma_m."""
+        if f.counters["bearing_accepted"] < 10:
+            return False
+        dt = max(t_s - f.t_s, 0.0)
+        P = f.P[:3, :3] + dt * (f.P[:3, 3:] + f.P[3:, :3]) + dt * dt * f.P[3:, 3:]
+        return bool(np.sqrt(max(np.trace(P), 0.0)) <= self.assoc_max_sigma_m)
 
     @staticmethod
     def predicted_m_xy(f: NeighbourFilter, b: Bearing) -> np.ndarray | None:
@@ -107,7 +112,7 @@ class AssociationRules:
         stand 5-15 px away, and a settled estimate (sigma at most assoc_max_sigma_m, mostly
         0.1-0.3 m) predicts its own within a few pixels at 100-300 m. The nearest part is
         taken without a gate: the bearing's own gate in the filter still applies."""
-        if f.counters["bearing_accepted"] < 10 or np.sqrt(max(float(np.trace(f.P[:3, :3])), 0.0)) > self.assoc_max_sigma_m:
+        if not self.settled(f, b.t_s):
             return None
         m_pred = self.predicted_m_xy(f, b)
         if m_pred is None:
