@@ -26,7 +26,7 @@ log = logging.getLogger(__name__)
 
 @dataclass(frozen=True)
 class StartRules:
-    """When estimates start, restart and are forgotten (RelnavAid.Params gives their meaning).
+    """When estimates start, restart and are forgotten (settings.RelnavParams gives their meaning).
 
     reset_after_rejects: bearings rejected in a row that mark an estimate lost (with
     reset_bearing_after_s, s, since its last accepted bearing); id_confidence: the ID
