@@ -21,6 +21,9 @@ def register(subparsers) -> None:
     p.add_argument("--pdf", action="store_true", help="also write report.pdf")
     p.add_argument("--save-frames", type=int, metavar="N", default=0, help="save every Nth camera frame as PNG under OUT/frames")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--check", action="store_true",
+                   help="only check the scenario: build every vehicle, open every map, set the initial state, "
+                        "print the resolved scenario (YAML) and exit 0 (2 on bad input) without flying or writing")
     p.set_defaults(handler=run)
 
 
@@ -33,6 +36,14 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(f"--seed {args.seed}: expected a non-negative integer")
         overrides.append(f"seed={args.seed}")
     loaded = load_scenario(args.scenario, overrides)
+    if args.check:
+        from testbench.sim.runner import check_scenario
+
+        resolved = check_scenario(loaded)
+        n = len(loaded.scenario.vehicles)
+        print(f"# {loaded.scenario.name}: valid; {n} vehicle{'s' * (n != 1)} built, maps opened, initial state set")
+        print(resolved, end="")
+        return 0
     out = Path(args.out) if args.out else Path("reports") / loaded.scenario.name
     if args.save_frames < 0:
         raise InputError(f"--save-frames {args.save_frames}: expected a non-negative integer")

@@ -81,6 +81,20 @@ def build_engine(
     return engine, world, recorder
 
 
+def check_scenario(loaded: LoadedScenario) -> str:
+    """Build everything the scenario names without flying it: the vehicles (JSBSim models,
+    sensors, navigators, aids, controllers), every map and elevation model of the world (opened,
+    georeference read; procedural worlds generated into the cache), and each vehicle's initial
+    state (set, a fixed wing trimmed, the navigators initialised). Bad input raises InputError
+    as `run` would; nothing is written. Returns the resolved scenario (after --set and ${VAR})
+    as YAML, the scenario.yaml a run would write."""
+    engine, world, _ = build_engine(loaded)
+    for open_map in (world.imagery, world.reference_map, world.elevation, world.reference_elevation):
+        open_map()
+    engine.start()
+    return yaml.safe_dump(loaded.data, sort_keys=False)
+
+
 def run_scenario(
     loaded: LoadedScenario,
     out_dir: str | os.PathLike,

@@ -1,0 +1,55 @@
+"""`testbench run --check`: the scenario is built (vehicles, maps, initial state) but not flown;
+the resolved scenario goes to stdout, nothing is written, bad input still exits 2."""
+
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+import rasterio
+import yaml
+from rasterio.errors import NotGeoreferencedWarning
+
+REPO = Path(__file__).resolve().parents[2]
+SCENARIOS = REPO / "scenarios"
+
+
+def _run(*args):
+    return subprocess.run([sys.executable, str(REPO / "cli.py"), "run", *args], capture_output=True, text=True,
+                          cwd=REPO, timeout=120)
+
+
+def _write_plain_tif(path: Path) -> None:
+    """An 8 x 8 GeoTIFF without CRS or transform (a map without georeference)."""
+    with rasterio.open(path, "w", driver="GTiff", width=8, height=8, count=1, dtype="uint8") as dst:
+        dst.write(np.zeros((1, 8, 8), np.uint8))
+
+
+def test_check_prints_the_resolved_scenario_and_writes_nothing(tmp_path):
+    proc = _run(str(SCENARIOS / "fixedwing_racetrack.yaml"), "--check", "--set", "duration_s=7",
+                "--set", "vehicles.uav0.mission.altitude_agl_m=300", "--out", str(tmp_path / "o"))
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.startswith("# fixedwing_racetrack: valid; 1 vehicle built")
+    resolved = yaml.safe_load(proc.stdout)
+    assert resolved["duration_s"] == 7
+    assert resolved["vehicles"][0]["id"] == "uav0"
+    assert resolved["vehicles"][0]["mission"]["params"]["altitude_agl_m"] == 300
+    assert not (tmp_path / "o").exists()
+
+
+def test_check_opens_maps_a_run_would_open_only_later(tmp_path):
+    # The racetrack has no camera, so a run would never read its imagery; the check does.
+    tif = tmp_path / "plain.tif"
+    with warnings.catch_warnings():  # rasterio warns that what it writes has no georeference: the point
+        warnings.simplefilter("ignore", NotGeoreferencedWarning)
+        _write_plain_tif(tif)
+    proc = _run(str(SCENARIOS / "fixedwing_racetrack.yaml"), "--check", "--set", f"world.imagery={tif}")
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert "no georeference" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_check_sets_the_initial_state(tmp_path):
+    proc = _run(str(SCENARIOS / "multirotor_waypoints.yaml"), "--check", "--set", "vehicles.quad0.initial.altitude_m=-50")
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert "below the terrain" in proc.stderr and "Traceback" not in proc.stderr
