@@ -29,18 +29,22 @@ def run(args: argparse.Namespace) -> int:
     from testbench.batch import BatchPlan, Vary, run_batch
     from testbench.config.loader import load_scenario
     from testbench.core.errors import InputError
+    from testbench.sim.runner import check_scenario
 
     if args.runs < 1:
         raise InputError(f"--runs {args.runs}: expected a positive integer")
     if args.workers < 1:
         raise InputError(f"--workers {args.workers}: expected a positive integer")
     vary = tuple(Vary.parse(v) for v in args.vary)
-    # Validate the scenario (and every varied key at one drawn value) before starting workers.
+    # Check the scenario before starting workers: validated, and the first run's (every varied
+    # key at its first draw) built as `run --check` builds it (maps opened, initial state set),
+    # so that a bad path or an impossible start is one clear error, not N failed runs.
     loaded = load_scenario(args.scenario, list(args.overrides))
     seed = loaded.scenario.seed if args.seed is None else args.seed
     plan = BatchPlan(args.scenario, args.runs, seed, tuple(args.overrides), vary)
     if vary:
-        load_scenario(args.scenario, list(plan.run_specs()[0].overrides))
+        loaded = load_scenario(args.scenario, list(plan.run_specs()[0].overrides))
+    check_scenario(loaded)
     bar = tqdm(total=args.runs, unit="run", file=sys.stderr, disable=not sys.stderr.isatty())
     failed = 0
 

@@ -99,3 +99,18 @@ def test_vary_offset_moves_tied_keys_by_one_draw():
     assert len(set(shifts)) == 4, "each run draws its own shift"
     with pytest.raises(InputError, match="adds numbers"):
         Vary.parse("vehicles.uav0.aircraft+=choice(a, b)")
+
+
+def test_cli_checks_the_scenario_before_any_run(tmp_path):
+    """A bad map path is one clear error (exit 2) before workers start, not N failed runs."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "batch"
+    proc = subprocess.run(
+        [sys.executable, str(REPO / "cli.py"), "montecarlo", SCENARIO, "--runs", "3", "--workers", "1", "--out", str(out),
+         "--set", "duration_s=2", "--set", f"world.imagery={tmp_path / 'missing.tif'}"],
+        capture_output=True, text=True, cwd=REPO, timeout=120)
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert "missing.tif': no such file" in proc.stderr and "Traceback" not in proc.stderr
+    assert not out.exists()
