@@ -38,13 +38,15 @@ def run(args: argparse.Namespace) -> int:
     vary = tuple(Vary.parse(v) for v in args.vary)
     # Check the scenario before starting workers: validated, and the first run's (every varied
     # key at its first draw) built as `run --check` builds it (maps opened, initial state set),
-    # so that a bad path or an impossible start is one clear error, not N failed runs.
+    # so that a bad path or an impossible start is one clear error, not N failed runs. Built
+    # only for the local pool: a cluster's workers open the maps on their own file systems.
     loaded = load_scenario(args.scenario, list(args.overrides))
     seed = loaded.scenario.seed if args.seed is None else args.seed
     plan = BatchPlan(args.scenario, args.runs, seed, tuple(args.overrides), vary)
     if vary:
         loaded = load_scenario(args.scenario, list(plan.run_specs()[0].overrides))
-    check_scenario(loaded)
+    if args.scheduler is None:
+        check_scenario(loaded)
     bar = tqdm(total=args.runs, unit="run", file=sys.stderr, disable=not sys.stderr.isatty())
     failed = 0
 
