@@ -29,14 +29,13 @@ def engine_overhead(scenario: str = "fixedwing_racetrack", duration_s: float = 1
     loaded = load_scenario(SCENARIOS_DIR / f"{scenario}.yaml", [f"duration_s={duration_s}"])
     captured: list[list] | None = None
     engine_s, replay_s, bare_s = [], [], []
-    n_steps = 0
-    sim_time_s = 0.0
     for _ in range(max(1, int(repeats))):
-        run_s, n_steps, sim_time_s, commands = _engine_run(loaded, captured)
+        run_s, res, engine, world, commands = _engine_run(loaded, captured)
         captured = captured if captured is not None else commands
         engine_s.append(run_s)
         replay_s.append(_engine_run(loaded, captured, replay=True)[0])
-        bare_s.append(_bare_run(loaded, captured, n_steps))
+        bare_s.append(_bare_run(engine, world, loaded.scenario.physics_rate_hz, captured, res.ticks))
+    n_steps, sim_time_s = res.ticks, res.sim_time_s
     pairs = [e / b for e, b in zip(engine_s, bare_s)]
     return {
         "engine.overhead_ratio": min(engine_s) / min(bare_s),
@@ -49,12 +48,13 @@ def engine_overhead(scenario: str = "fixedwing_racetrack", duration_s: float = 1
     }
 
 
-def _engine_run(loaded, captured: list[list] | None, replay: bool = False) -> tuple[float, int, float, list[list]]:
-    """One run through the engine: (wall s, physics steps, sim s, each vehicle's commands).
+def _engine_run(loaded, captured: list[list] | None, replay: bool = False):
+    """One run through the engine: (wall s, EngineResult, the engine, its world, each vehicle's
+    commands).
     Without `captured`, every command the controllers issue is captured; with replay=True the
     controllers are replaced by a replay of `captured` (the autopilot's own cost removed;
     sensors, navigator, truth extraction, scheduling and recording remain)."""
-    engine, _, _ = build_engine(loaded)
+    engine, world, _ = build_engine(loaded)
     log: list[list] = [[] for _ in engine.vehicles]
     for i, v in enumerate(engine.vehicles):
         if replay:
@@ -72,19 +72,18 @@ def _engine_run(loaded, captured: list[list] | None, replay: bool = False) -> tu
     res = engine.run()
     if res.aborted:
         raise RuntimeError(f"benchmark scenario aborted: {res.aborted}")
-    return res.wall_time_s, res.ticks, res.sim_time_s, log
+    return res.wall_time_s, res, engine, world, log
 
 
-def _bare_run(loaded, captured: list[list], n_steps: int) -> float:
-    """Wall seconds of bare JSBSim models (fresh, at the scenario's initial conditions, not
-    timed) stepping n_steps physics steps with the captured commands applied at the ticks the
-    engine applied them (so they fly the same trajectory)."""
+def _bare_run(engine, world, physics_rate_hz: float, captured: list[list], n_steps: int) -> float:
+    """Wall seconds of bare JSBSim models (fresh, at the initial conditions of the engine's
+    vehicles, not timed) stepping n_steps physics steps with the captured commands applied at
+    the ticks the engine applied them (so they fly the same trajectory)."""
     from testbench.dynamics.jsbsim_adapter import JSBSimDynamics
 
-    engine, world, _ = build_engine(loaded)  # for each vehicle's spec and control period
     bare = []
     for v in engine.vehicles:
-        d = JSBSimDynamics(v.spec.aircraft, world.origin, loaded.scenario.physics_rate_hz, vehicle_id=v.id)
+        d = JSBSimDynamics(v.spec.aircraft, world.origin, physics_rate_hz, vehicle_id=v.id)
         d.reset(initial_condition(v.spec, world.origin))
         bare.append((d, v.control_every))
     t0 = time.perf_counter()
