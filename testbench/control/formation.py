@@ -123,9 +123,10 @@ class FormationParams(ParamsModel):
     that course is the direction of our velocity plus a neighbour's relative velocity, whose
     error of 0.1-0.2 m/s is 3-10 deg of course at 1-3 m/s; its variance grows as 1/speed^2, so
     the averaging time must too. In the leader's start-up (0 to 4 m/s in 16 s) the first row's
-    velocity course erred by 3-16 deg, and its slot, 100 m from the leader, by 4 m; margin_m, k_repulse (1/s): collision-avoidance margin and gain;
-    max_age_s, max_sigma_m: estimates older or more uncertain (sqrt trace of the position
-    covariance) than this are ignored; max_speed_mps, max_climb_rate_mps; max_accel_mps2: slew
+    velocity course erred by 3-16 deg, and its slot, 100 m from the leader, by 4 m;
+    margin_m, k_repulse (1/s): collision-avoidance margin and gain; max_age_s, max_sigma_m:
+    estimates older or more uncertain (sqrt trace of the position covariance) than this are
+    ignored; max_speed_mps, max_climb_rate_mps; max_accel_mps2: slew
     limit of the velocity command; ahead_only: follow only the neighbours whose slot lies ahead
     of ours (closer to the leader; all of them when none ahead is fresh), so that the lag of the
     followers behind does not drag the formation (a directed leader-follower chain)."""
