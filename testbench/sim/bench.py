@@ -30,10 +30,10 @@ def engine_overhead(scenario: str = "fixedwing_racetrack", duration_s: float = 1
     captured: list[list] | None = None
     engine_s, replay_s, bare_s = [], [], []
     for _ in range(max(1, int(repeats))):
-        run_s, res, engine, world, commands = _engine_run(loaded, captured)
+        res, engine, world, commands = _engine_run(loaded, captured)
         captured = captured if captured is not None else commands
-        engine_s.append(run_s)
-        replay_s.append(_engine_run(loaded, captured, replay=True)[0])
+        engine_s.append(res.wall_time_s)
+        replay_s.append(_engine_run(loaded, captured, replay=True)[0].wall_time_s)
         bare_s.append(_bare_run(engine, world, loaded.scenario.physics_rate_hz, captured, res.ticks))
     n_steps, sim_time_s = res.ticks, res.sim_time_s
     pairs = [e / b for e, b in zip(engine_s, bare_s)]
@@ -49,8 +49,7 @@ def engine_overhead(scenario: str = "fixedwing_racetrack", duration_s: float = 1
 
 
 def _engine_run(loaded, captured: list[list] | None, replay: bool = False):
-    """One run through the engine: (wall s, EngineResult, the engine, its world, each vehicle's
-    commands).
+    """One run through the engine: (EngineResult, the engine, its world, each vehicle's commands).
     Without `captured`, every command the controllers issue is captured; with replay=True the
     controllers are replaced by a replay of `captured` (the autopilot's own cost removed;
     sensors, navigator, truth extraction, scheduling and recording remain)."""
@@ -72,7 +71,7 @@ def _engine_run(loaded, captured: list[list] | None, replay: bool = False):
     res = engine.run()
     if res.aborted:
         raise RuntimeError(f"benchmark scenario aborted: {res.aborted}")
-    return res.wall_time_s, res, engine, world, log
+    return res, engine, world, log
 
 
 def _bare_run(engine, world, physics_rate_hz: float, captured: list[list], n_steps: int) -> float:
