@@ -28,6 +28,18 @@ def new_figure(width_in: float = 9.0, height_in: float = 4.0) -> Figure:
     return Figure(figsize=(width_in, height_in), dpi=100, layout="constrained")
 
 
+def legend_or_note(ax: Any, empty_note: str = "no data", **legend_kw: Any) -> None:
+    """The axes' legend, or, when nothing on it carries a label (a run without scene-matching
+    fixes, a vehicle that never saw a neighbour), `empty_note` written in its middle: an empty
+    panel says why it is empty, and matplotlib's "no artists with labels" warning does not
+    reach the user's terminal."""
+    handles, _ = ax.get_legend_handles_labels()
+    if handles:
+        ax.legend(**legend_kw)
+    else:
+        ax.text(0.5, 0.5, empty_note, transform=ax.transAxes, ha="center", va="center", fontsize=8, color="grey")
+
+
 def vehicle_colors(ids: list[str]) -> dict[str, Any]:
     """A stable colour per vehicle id (tab10, then tab20 for bigger swarms)."""
     from matplotlib import colormaps

@@ -6,8 +6,9 @@ import logging
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 
-from testbench.reporting.figures_common import new_figure, shade_spans, denied_spans, vehicle_colors
+from testbench.reporting.figures_common import denied_spans, legend_or_note, new_figure, shade_spans, vehicle_colors
 from testbench.reporting.model import FigureItem
 from testbench.scoring.metrics_events import ismn_fix_errors, pair_key, relnav_errors_m
 from testbench.scoring.phases import event_turning
@@ -56,6 +57,16 @@ def ismn_example_figures(record: RunRecord) -> list[FigureItem]:
     return out
 
 
+def _no_fix_note(ismn: pd.DataFrame) -> str:
+    """What an empty fix panel says: no fix, and the commonest reason the attempts gave."""
+    reasons = ismn["reason"].astype(str) if "reason" in ismn.columns else pd.Series(dtype=str)
+    reasons = reasons[(reasons != "") & (reasons != "None") & (reasons != "nan")]
+    if reasons.empty:
+        return "no scene-matching fix"
+    top = reasons.value_counts()
+    return f"no scene-matching fix: {top.index[0]} ({int(top.iloc[0])} of {len(ismn)} attempts)"
+
+
 def ismn_fix_figure(record: RunRecord) -> FigureItem | None:
     """Fix error vs time (smooth / turning, accepted / rejected) and the latency histogram."""
     ismn = record.event("ismn")
@@ -77,7 +88,7 @@ def ismn_fix_figure(record: RunRecord) -> FigureItem | None:
     ax.set_xlabel("time (s)")
     ax.set_ylabel("fix horizontal error (m)")
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=7)
+    legend_or_note(ax, _no_fix_note(ismn), fontsize=7)
     v = lat[np.isfinite(lat)]
     if v.size:
         axh.hist(v, bins=min(40, max(5, v.size // 5)), color="C2", alpha=0.8)
@@ -123,7 +134,7 @@ def relnav_figure(record: RunRecord) -> FigureItem | None:
     ax.set_ylabel("relative position error (m)" + (" (log)" if wide else ""))
     ax.grid(True, alpha=0.3)
     title = "" if len(pairs) <= MAX_PAIR_LINES else f" (first {MAX_PAIR_LINES} of {len(pairs)} pairs)"
-    ax.legend(fontsize=6, ncol=2, title=title or None, title_fontsize=7)
+    legend_or_note(ax, "no neighbour estimates", fontsize=6, ncol=2, title=title or None, title_fontsize=7)
     order = np.argsort(rms)[::-1][:30]
     axb.barh([pair_key(*pairs[k]).replace("_to_", " → ") for k in order], [rms[k] for k in order], color="C1")
     axb.invert_yaxis()
@@ -168,7 +179,7 @@ def formation_figure(record: RunRecord) -> FigureItem | None:
             if sel.any():
                 axe.plot(ft[sel], fe[sel], lw=0.9, color=colors[vid], label=vid)
         axe.set_ylabel("slot error (m)")
-        axe.legend(fontsize=6, ncol=2)
+        legend_or_note(axe, "no slot errors recorded", fontsize=6, ncol=2)
     else:
         axe.text(0.5, 0.5, "no formation events recorded", ha="center", va="center", transform=axe.transAxes)
     axe.set_xlabel("time (s)")

@@ -9,6 +9,7 @@ from testbench.reporting.figures_common import (
     MAX_DETAILED_VEHICLES,
     denied_spans,
     ecdf,
+    legend_or_note,
     map_preview,
     new_figure,
     shade_spans,
@@ -158,7 +159,7 @@ def _cdf_axes(ax, values, groups, xlabel) -> None:
     ax.set_ylabel("fraction ≤ x")
     ax.set_ylim(0, 1.02)
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=7, loc="lower right")
+    legend_or_note(ax, "no samples", fontsize=7, loc="lower right")
 
 
 def control_figure(record: RunRecord) -> FigureItem | None:

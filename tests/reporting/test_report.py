@@ -78,3 +78,34 @@ def test_report_command(tmp_path):
     bad = parser.parse_args(["report", str(tmp_path / "nothing")])
     with pytest.raises(InputError, match="not a run directory"):
         bad.handler(bad)
+
+
+
+def test_empty_panels_say_why_and_warn_nothing(tmp_path):
+    """A run whose scene matching never produced a fix (its camera looked off the map): the
+    fix panel names the reason its attempts gave, and no matplotlib warning ("no artists with
+    labels") reaches the terminal."""
+    import warnings
+
+    import pandas as pd
+
+    from testbench.reporting.figures_events import ismn_fix_figure
+    from testbench.scoring.record_io import load_run
+
+    d = make_synthetic_run(tmp_path, np.random.default_rng(3), n_vehicles=1, duration_s=20.0, rate_hz=5.0,
+                           with_images=False)
+    path = d / "events" / "ismn.parquet"
+    ismn = pd.read_parquet(path)
+    ismn["fix"] = ismn["accepted"] = False
+    for c in ("fix_north_m", "fix_east_m", "fix_down_m"):
+        ismn[c] = np.nan
+    ismn["reason"] = "search window off the reference map"
+    ismn.to_parquet(path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        item = ismn_fix_figure(load_run(d))
+        html = write_html_report(d).read_text()
+    notes = [t.get_text() for ax in item.figure.axes for t in ax.texts]
+    assert f"no scene-matching fix: search window off the reference map ({len(ismn)} of {len(ismn)} attempts)" in notes
+    assert item.figure.axes[0].get_legend() is None
+    assert 'id="ismn"' in html
