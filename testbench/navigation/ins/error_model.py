@@ -19,7 +19,11 @@ Error convention (truth = nominal (+) error):
   f_b = -mu (1 + s) v_b, and mu, taken at hover, changes with the rotor speeds the manoeuvre
   needs (a few per mille to a percent) and lasts for a minute, which the filter must not
   average away as white noise (that left the drag-aided position 2-11 m off against 2.3 m
-  claimed, NEES 7.7 for 2 dof, in paper_swarm_relnav); Gauss-Markov.
+  claimed, NEES 7.7 for 2 dof, in paper_swarm_relnav); Gauss-Markov;
+- dw (2): error of the horizontal wind (north, east, m/s; the air moves with velocity
+  (w_N, w_E, 0) over the ground): what airspeed aiding measures the velocity against
+  (a fixed wing's pitot and zero sideslip give its velocity through the air, v - w); a random
+  walk, since the wind changes with place and height as the vehicle flies.
 The nominal biases are subtracted from the raw IMU data: omega = omega_meas - b_g.
 
 Continuous error dynamics (phi-angle model, Titterton & Weston ch. 12 / Groves ch. 14, in
@@ -56,14 +60,16 @@ IBB = 15
 IGN = slice(16, 19)
 IFX = slice(19, 22)
 IDS = 22
-N_STATES = 23
+IW = slice(23, 25)
+N_STATES = 25
 N_CORE = 15
 """Number of states that truth can be compared with (without the barometer bias)."""
 
 
 def continuous_F(lat_rad, h_m, vel_ned_mps, C_nb, f_n_mps2, tau_g_s, tau_a_s, tau_baro_s=math.inf,
                  tau_gnss_s=math.inf, tau_fix_s=math.inf, tau_drag_s=math.inf):
-    """Continuous-time error-state Jacobian F (23, 23) at one nominal state.
+    """Continuous-time error-state Jacobian F (25, 25) at one nominal state (the wind error, a
+    random walk, has no dynamics: its rows are zero).
 
     lat_rad, h_m: nominal position; vel_ned_mps (3,); C_nb (3, 3) body->NED;
     f_n_mps2 (3,): specific force resolved in NED (C_nb f_b); tau_*: bias correlation times (s).
@@ -135,8 +141,9 @@ def continuous_F(lat_rad, h_m, vel_ned_mps, C_nb, f_n_mps2, tau_g_s, tau_a_s, ta
 def process_noise_diag(noise, baro_bias_rw_m_sqrt_s: float, gnss_error_sigma_m: float = 0.0,
                        gnss_error_tau_s: float = math.inf, fix_error_sigma_m: float | np.ndarray = 0.0,
                        fix_error_tau_s: float = math.inf, drag_scale_sigma: float = 0.0,
-                       drag_scale_tau_s: float = math.inf) -> np.ndarray:
-    """Diagonal of G Qc G^T (23,): continuous process-noise PSD mapped into the error states.
+                       drag_scale_tau_s: float = math.inf, wind_rw_mps_sqrt_s: float = 0.0) -> np.ndarray:
+    """Diagonal of G Qc G^T (25,): continuous process-noise PSD mapped into the error states.
+    wind_rw_mps_sqrt_s: the horizontal wind's random walk (per axis; 0 without airspeed aiding).
 
     The white gyro and accelerometer noises enter through -C_nb; they are isotropic, so
     C_nb (s^2 I) C_nb^T = s^2 I and the mapped PSD stays diagonal. Bias driving noise of a
@@ -154,6 +161,7 @@ def process_noise_diag(noise, baro_bias_rw_m_sqrt_s: float, gnss_error_sigma_m: 
     # fix_error_sigma_m: one figure or (3,) per NED axis.
     q[IFX] = 2.0 * np.square(fix_error_sigma_m) / fix_error_tau_s if math.isfinite(fix_error_tau_s) else 0.0
     q[IDS] = 2.0 * drag_scale_sigma**2 / drag_scale_tau_s if math.isfinite(drag_scale_tau_s) else 0.0
+    q[IW] = wind_rw_mps_sqrt_s**2
     return q
 
 

@@ -1,5 +1,5 @@
 """Measurement models of the error-state EKF: residual y = z - h(nominal), Jacobian
-H = d h(nominal (+) error) / d error at zero error (23 columns, error_model layout), noise R.
+H = d h(nominal (+) error) / d error at zero error (25 columns, error_model layout), noise R.
 
 Each function takes the filter (`ErrorStateEKF`) for its nominal state and returns (y, H, R).
 """
@@ -16,7 +16,7 @@ from testbench.core.errors import InputError
 from testbench.core.units import STANDARD_GRAVITY_MPS2
 from testbench.core.interfaces import GeodeticOrigin
 from testbench.core.rotations import dcm_to_euler, skew, wrap_pi
-from testbench.navigation.ins.error_model import IA, IBA, IBB, IDS, IFX, IGN, IP, IV, N_STATES
+from testbench.navigation.ins.error_model import IA, IBA, IBB, IDS, IFX, IGN, IP, IV, IW, N_STATES
 
 
 def gnss_position(ekf, lat_rad: float, lon_rad: float, alt_m: float, sigma_ned_m):
@@ -188,3 +188,40 @@ def drag_specific_force(ekf, f_b_xy_mps2, v_b_xy_mps, mu_per_s: float, sigma_mps
     H[:, IBA] = np.eye(3)[:2]
     H[:, IDS] = -mu_per_s * v_b
     return y, H, np.eye(2) * sigma_mps2**2
+
+
+def air_velocity_ned(ekf) -> np.ndarray:
+    """(3,) the nominal velocity through the air, v - (w_N, w_E, 0), NED m/s."""
+    v = np.array(ekf.ins.vel, float)
+    v[:2] -= ekf.wind_ne_mps
+    return v
+
+
+def true_airspeed(ekf, airspeed_mps: float, sigma_mps: float):
+    """Pitot true airspeed (m/s) against h = |v - w| (the speed through the air; the wind w is
+    horizontal, ekf.wind_ne_mps). With u = (v - w) / |v - w|: H_v = u, H_w = -u_NE. The pitot's
+    own angle-of-attack error is left in sigma."""
+    a = air_velocity_ned(ekf)
+    speed = float(np.linalg.norm(a))
+    u = a / speed
+    y = np.array([float(airspeed_mps) - speed])
+    H = np.zeros((1, N_STATES))
+    H[0, IV] = u
+    H[0, IW] = -u[:2]
+    return y, H, np.array([[sigma_mps**2]])
+
+
+def zero_sideslip(ekf, sigma_rad: float):
+    """Synthetic measurement of a fixed wing in coordinated flight: its velocity through the
+    air has no body y (right) component, 0 against h = e_y C_true^T (v_true - w_true), with
+    noise sigma_rad |v - w| (a sideslip of sigma_rad). With C_true = (I + [phi x]) C_nb:
+    C_true^T a = C^T a + C^T [a x] phi, so H_v = e_y C^T, H_w = -(e_y C^T)_NE, H_phi = e_y C^T [a x]."""
+    a = air_velocity_ned(ekf)
+    Ct_y = ekf.C_nb[:, 1]  # the body y axis in NED: row y of C^T
+    y = np.array([-float(Ct_y @ a)])
+    H = np.zeros((1, N_STATES))
+    H[0, IV] = Ct_y
+    H[0, IW] = -Ct_y[:2]
+    H[0, IA] = Ct_y @ skew(a)
+    sigma = sigma_rad * float(np.linalg.norm(a))
+    return y, H, np.array([[sigma**2]])

@@ -29,19 +29,21 @@ from testbench.core.units import DEG_TO_RAD, STANDARD_GRAVITY_MPS2
 from testbench.navigation.ins import measurements as meas
 from testbench.navigation.ins.consistency import error_state
 from testbench.navigation.ins.ekf import ErrorStateEKF
-from testbench.navigation.ins.error_model import IA, IBA, IBB, IBG, IDS, IFX, IGN, IP, IV, N_STATES
+from testbench.navigation.ins.error_model import IA, IBA, IBB, IBG, IDS, IFX, IGN, IP, IV, IW, N_STATES
 from testbench.navigation.ins.imu_noise import imu_noise_from_datasheet, preset_datasheet, preset_names, preset_scale_error
 from testbench.navigation.ins.magnetic import OnboardMagneticModel
-from testbench.navigation.ins.settings import DragAiding, ImuNoiseParams, InitialSigmas, MeasurementSigmas
+from testbench.navigation.ins.settings import AirspeedAiding, DragAiding, ImuNoiseParams, InitialSigmas, MeasurementSigmas
 
 log = logging.getLogger(__name__)
 
 
 @register("navigator", "ins_ekf")
 class InsEkfNavigator(Navigator):
-    """Strapdown INS in WGS-84 with a 16-state error-state EKF (position, velocity, attitude,
-    gyro and accelerometer biases, barometer bias), aided by barometer, magnetometer, GNSS
-    (while it has a fix) and absolute position fixes (scene matching)."""
+    """Strapdown INS in WGS-84 with a 25-state error-state EKF (position, velocity, attitude,
+    gyro and accelerometer biases, barometer bias, the GNSS receiver's and the position fixes'
+    shared errors, the rotor-drag scale, the horizontal wind: error_model), aided by barometer,
+    magnetometer, GNSS (while it has a fix), absolute position fixes (scene matching), rotor
+    drag (multirotors) and airspeed with zero sideslip (fixed wings)."""
 
     class Params(ParamsModel):
         imu_preset: str = "paper"
@@ -139,6 +141,10 @@ class InsEkfNavigator(Navigator):
         of fix error per mrad of the filter's tilt error)."""
         drag_aiding: DragAiding | None = None
         """Rotor-drag velocity aiding (multirotors in calm air; see DragAiding); None: off."""
+        airspeed_aiding: AirspeedAiding | None = None
+        """True airspeed and zero-sideslip velocity aiding with wind states (fixed wings with an
+        airspeed sensor; see AirspeedAiding); None: off (the airspeed is only passed on to the
+        controller)."""
 
     def __init__(self, params: "InsEkfNavigator.Params", *, ctx: BuildContext, aircraft: dict | None = None,
                  rng: np.random.Generator | None = None, **_: object):
@@ -182,9 +188,11 @@ class InsEkfNavigator(Navigator):
             scale_corr_angle_rad=math.radians(params.scale_error_angle_deg),
             drag_scale_sigma=self.drag_scale_sigma,
             drag_scale_tau_s=math.inf if params.drag_aiding is None else params.drag_aiding.scale_tau_s,
+            wind_rw_mps_sqrt_s=0.0 if params.airspeed_aiding is None else params.airspeed_aiding.wind_rw_mps_sqrt_s,
         )
         self._mag_model: OnboardMagneticModel | None = None
         self._airspeed: float | None = None
+        self._last_airspeed_fused_t_s = -math.inf
         self._initialized = False
         self._last_gnss_t = -math.inf
         self._last_fix_ok_t_s: float | None = None  # last accepted position fix (None: none yet)
@@ -230,7 +238,8 @@ class InsEkfNavigator(Navigator):
         return dx
 
     def initial_covariance(self) -> np.ndarray:
-        """P0 (23, 23) from Params.initial_sigma (GNSS and fix error states and the drag scale: their steady state)."""
+        """P0 (25, 25) from Params.initial_sigma (GNSS and fix error states and the drag scale: their
+        steady state; the wind: airspeed_aiding.wind_sigma_mps, 0 without airspeed aiding)."""
         s = self.params.initial_sigma
         d = np.empty(N_STATES)
         d[IP] = s.pos_m
@@ -246,6 +255,7 @@ class InsEkfNavigator(Navigator):
         d[IGN] = self.params.gnss_error_sigma_m
         d[IFX] = self.fix_error_sigma_ned_m
         d[IDS] = self.drag_scale_sigma
+        d[IW] = 0.0 if self.params.airspeed_aiding is None else self.params.airspeed_aiding.wind_sigma_mps
         return np.diag(d**2)
 
     def predict(self, imu: ImuSample) -> None:
@@ -312,10 +322,10 @@ class InsEkfNavigator(Navigator):
         if isinstance(measurement, GnssFix):
             return self._correct_gnss(measurement, t) if p.use_gnss else None
         if isinstance(measurement, AirspeedSample):
-            # Kept for the estimate (controllers fly airspeed); without a wind state it is
-            # not a useful constraint on ground velocity, so it is not fused.
+            # Kept for the estimate (controllers fly airspeed); fused only with airspeed aiding
+            # (its wind states make it a constraint on the velocity over the ground).
             self._airspeed = float(measurement.airspeed_mps)
-            return None
+            return self._correct_airspeed(self._airspeed, t) if p.airspeed_aiding is not None else None
         return None
 
     def estimate(self) -> NavEstimate:
@@ -357,7 +367,7 @@ class InsEkfNavigator(Navigator):
 
     # ------------------------------------------------------------------ extras
     def covariance(self) -> np.ndarray:
-        """Full error covariance (23, 23) in the filter's own frames (error_model layout)."""
+        """Full error covariance (25, 25) in the filter's own frames (error_model layout)."""
         return self.ekf.covariance()
 
     def error_state(self, truth: TruthState, gyro_bias_rps=None, accel_bias_mps2=None) -> np.ndarray:
@@ -398,6 +408,22 @@ class InsEkfNavigator(Navigator):
         info, self._last_gnss_ok_t_s = self._update_or_reset(
             "gnss", t, y, H, R, self._last_gnss_ok_t_s, self._last_fix_ok_t_s, self.params.gnss_reset_after_s)
         return info
+
+    def _correct_airspeed(self, airspeed_mps: float, t: float) -> CorrectionInfo | None:
+        """Fuse the true airspeed and, unless sideslip_sigma_deg is None, zero sideslip as one
+        measurement ("airspeed", 1 or 2 dof), at most every airspeed_aiding.interval_s and only
+        above min_airspeed_mps (measured and estimated)."""
+        a = self.params.airspeed_aiding
+        if t - self._last_airspeed_fused_t_s < a.interval_s - 1e-9:
+            return None
+        if airspeed_mps < a.min_airspeed_mps or np.linalg.norm(meas.air_velocity_ned(self.ekf)) < a.min_airspeed_mps:
+            return None
+        self._last_airspeed_fused_t_s = t
+        y, H, R = meas.true_airspeed(self.ekf, airspeed_mps, a.sigma_mps)
+        if a.sideslip_sigma_deg is not None:
+            yb, Hb, Rb = meas.zero_sideslip(self.ekf, a.sideslip_sigma_deg * DEG_TO_RAD)
+            y, H, R = np.concatenate([y, yb]), np.vstack([H, Hb]), np.diag([R[0, 0], Rb[0, 0]])
+        return self.ekf.update("airspeed", t, y, H, R)
 
     def _correct_baro(self, baro: BaroSample, t: float) -> CorrectionInfo:
         """Fuse a barometric altitude through the gate; after baro_reset_after_s of rejections

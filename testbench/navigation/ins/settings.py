@@ -50,8 +50,9 @@ class DragAiding(ParamsModel):
     x and y specific force -mu times the body velocity, so in calm air the accelerometers
     measure velocity, and the INS cannot drift in velocity (and, through it, in course) once
     GNSS is gone. Fused every interval_s with the specific force and the nominal body velocity
-    averaged over the interval. Not for fixed wings (no such drag law), nor in wind (the
-    model gives air-relative velocity: this filter has no wind states), nor on the ground."""
+    averaged over the interval. Not for fixed wings (no such drag law, see AirspeedAiding), nor
+    in wind (the model gives air-relative velocity, which this aiding takes for the velocity
+    over the ground), nor on the ground."""
 
     coefficient_per_s: float | None = pydantic.Field(None, gt=0)
     """mu (1/s); None: from the aircraft's sidecar at hover (measurements.momentum_drag_per_s)."""
@@ -74,6 +75,37 @@ class DragAiding(ParamsModel):
     lost (0.01: NEES 1.4, 1.95 m, 8.2 m). 0: mu taken as exact."""
     scale_tau_s: float = pydantic.Field(60.0, gt=0)
     """Correlation time of that scale error (s)."""
+
+
+class AirspeedAiding(ParamsModel):
+    """Airspeed velocity aiding of a fixed wing (the true-airspeed and synthetic-sideslip
+    fusion of PX4's EKF2, EKF2_ARSP_THR and EKF2_FUSE_BETA, with its two wind states). The pitot
+    gives the speed through the air, and a wing in coordinated flight flies with no sideslip,
+    so the velocity through the air, v - w, is measured in speed and in direction about the
+    nose; the filter estimates the horizontal wind w while GNSS is there and holds it after.
+    Without it a fixed wing's INS is free-inertial once GNSS is gone: swarm_fixedwing's leader
+    drifted to 22 m in 130 s, and in its turns, where the filter can tell tilt from position
+    through the vertical channel, each barometer sample moved the horizontal estimate by up to
+    5 m (the gain of a 35 m horizontal sigma correlated with a 2 cm one).
+    Fused as one two-dimensional measurement every interval_s (speed and body-y velocity
+    through the air), above min_airspeed_mps."""
+
+    sigma_mps: float = pydantic.Field(0.3, gt=0)
+    """Error of the true airspeed against |v - w|: the pitot's noise and bias (2 Pa and 1 Pa on
+    290 Pa of dynamic pressure at 22 m/s: 0.08 and 0.04 m/s) and its angle-of-attack and
+    installation error (a few per mille)."""
+    sideslip_sigma_deg: float | None = pydantic.Field(0.5, gt=0)
+    """Sideslip the zero-sideslip measurement allows (deg; None: the airspeed alone is fused).
+    tb_fixedwing in swarm_fixedwing: 0.01 deg RMS on straight legs, 0.29 deg RMS (0.93 deg at
+    most) in its 5 deg-bank turns."""
+    wind_sigma_mps: float = pydantic.Field(3.0, gt=0)
+    """Initial uncertainty of the wind, per horizontal axis (m/s)."""
+    wind_rw_mps_sqrt_s: float = pydantic.Field(0.05, ge=0)
+    """Random walk of the wind (m/s/sqrt(s)): 0.5 m/s over 100 s as the vehicle flies through it."""
+    interval_s: float = pydantic.Field(0.2, gt=0, le=1.0)
+    """Fuse at most this often (the pitot samples faster; its noise is white)."""
+    min_airspeed_mps: float = pydantic.Field(8.0, ge=0)
+    """Below this (on the ground, in the take-off run) nothing is fused."""
 
 
 class MeasurementSigmas(ParamsModel):

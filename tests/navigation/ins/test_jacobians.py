@@ -92,6 +92,7 @@ def _ekf_at(x_hat):
     ekf.b_fix = np.array([-0.3, 0.8, 0.2])
     ekf.b_baro = 1.5
     ekf.drag_scale = 0.02
+    ekf.wind_ne_mps = np.array([4.0, -6.0])
     return ekf
 
 
@@ -111,7 +112,7 @@ def _numeric_H(ekf, model, steps):
     return H
 
 
-STEPS = np.array([1.0] * 3 + [0.01] * 3 + [1e-5] * 3 + [1e-6] * 3 + [1e-3] * 3 + [0.1] + [0.1] * 6 + [1e-3])
+STEPS = np.array([1.0] * 3 + [0.01] * 3 + [1e-5] * 3 + [1e-6] * 3 + [1e-3] * 3 + [0.1] + [0.1] * 6 + [1e-3] + [0.01] * 2)
 X_HAT = (0.7, -1.6, 1200.0, np.array([40.0, -25.0, 3.0]), euler_to_quat(np.radians([8.0, -4.0, 140.0])))
 ORIGIN = GeodeticOrigin(0.7 - 3000 / 6.37e6, -1.6 + 2000 / 4.9e6, 300.0)
 B_NED = np.array([17e-6, 1e-6, 52e-6])
@@ -130,6 +131,9 @@ B_NED = np.array([17e-6, 1e-6, 52e-6])
         ("mag_heading", lambda e: meas.mag_heading(e, quat_to_dcm(X_HAT[4]).T @ B_NED, B_NED, 0.01)),
         # Rotor drag: the body velocity the residual uses is the (perturbed) nominal's own.
         ("drag", lambda e: meas.drag_specific_force(e, [-1.2, 0.4], (e.C_nb.T @ np.array(e.ins.vel))[:2], 0.365, 0.05)),
+        # Airspeed aiding: the speed and the body-y velocity through the air, v - wind.
+        ("airspeed", lambda e: meas.true_airspeed(e, 46.0, 0.3)),
+        ("sideslip", lambda e: meas.zero_sideslip(e, 0.01)),
     ],
 )
 def test_H_matches_finite_differences(name, model):
