@@ -1,17 +1,18 @@
-"""Error-state extended Kalman filter around the strapdown INS (25 states, error_model.py).
+"""Error-state extended Kalman filter around the strapdown INS (25 states, or 23 without the
+wind; error_model.py).
 
 Nominal state: the strapdown INS (lat, lon, h, v_ned, q_nb) plus gyro bias b_g (rad/s),
 accelerometer bias b_a (m/s^2), barometer bias b_baro (m) and the GNSS receiver's correlated
 position error b_gnss (NED m), the error that successive position fixes share b_fix
 (origin NED m) and the rotor-drag scale drag_scale (dimensionless), all Gauss-Markov processes,
-and the horizontal wind wind_ne_mps (north, east, m/s), a random walk.
+and, with wind_states, the horizontal wind wind_ne_mps (north, east, m/s), a random walk.
 
 Prediction runs the mechanisation at every IMU sample (~11 us). The covariance is propagated
 at a lower rate: the IMU samples of `cov_interval_s` (default 0.05 s, i.e. 5-10 IMU samples)
 are accumulated (elapsed time and the specific force resolved in NED) and P is propagated
 once over that interval with Phi = I + F T + (F T)^2 / 2 built at the end of it. F changes
 slowly (attitude by a few centiradians in a turn over 0.05 s), so the error of this choice is
-far below the model's own approximations, and it divides the cost of the 25 x 25 matrix
+far below the model's own approximations, and it divides the cost of the n x n matrix
 work by the number of samples. Every update first flushes the pending interval, so P is
 always current when a measurement is used.
 
@@ -43,6 +44,7 @@ from testbench.navigation.ins.error_model import (
     IP,
     IV,
     IW,
+    N_NO_WIND,
     N_STATES,
     continuous_F,
     discretize,
@@ -61,7 +63,8 @@ def chi2_threshold(probability: float, dof: int) -> float:
 
 
 class ErrorStateEKF:
-    """Error-state EKF of one vehicle. Shapes: P (25, 25); error vector layout in error_model.
+    """Error-state EKF of one vehicle. Shapes: P (n, n), n = self.n: N_STATES (25) with
+    wind_states, else N_NO_WIND (23); error vector layout in error_model.
 
     noise: IMU noise model; gate_probability: chi-square gate (e.g. 0.999; 1.0 disables);
     cov_interval_s: covariance propagation interval (0: every IMU sample);
@@ -77,8 +80,8 @@ class ErrorStateEKF:
     position erred by 0.16-0.19 m against 0.27 m claimed while the straight legs were consistent).
     drag_scale_sigma, drag_scale_tau_s: steady-state sigma and correlation time of the rotor-drag
     scale's error (error_model, dsd; 0 sigma: the drag model is taken as exact).
-    wind_rw_mps_sqrt_s: random walk of the horizontal wind state (per axis; 0: the wind is held,
-    as it is when nothing measures the velocity through the air).
+    wind_states: carry the horizontal wind (two more states, for airspeed aiding);
+    wind_rw_mps_sqrt_s: its random walk (per axis).
     gyro_scale_sigma, scale_corr_angle_rad: the gyros' scale-factor and cross-axis error (1 sigma,
     rad per rad turned) is a constant error in each rate the IMU reads, which the error state
     does not carry: it enters P as attitude noise per angle turned, s^2 Theta |dtheta| per axis,
@@ -99,10 +102,13 @@ class ErrorStateEKF:
                  fix_error_sigma_m: float | np.ndarray = 0.0, fix_error_tau_s: float = math.inf,
                  fix_error_turn_rad: float = math.inf, bias_model: str = "random_walk", gyro_scale_sigma: float = 0.0,
                  scale_corr_angle_rad: float = 0.5 * math.pi, drag_scale_sigma: float = 0.0,
-                 drag_scale_tau_s: float = math.inf, wind_rw_mps_sqrt_s: float = 0.0, vehicle_id: str | None = None):
+                 drag_scale_tau_s: float = math.inf, wind_states: bool = False, wind_rw_mps_sqrt_s: float = 0.0,
+                 vehicle_id: str | None = None):
         if bias_model not in ("random_walk", "gauss_markov"):
             raise ValueError(f"bias_model {bias_model!r}: expected 'random_walk' or 'gauss_markov'")
         self.noise = noise
+        self.n = N_STATES if wind_states else N_NO_WIND
+        """Number of error states (the length of dx, the size of P)."""
         # Correlation times of the IMU bias ERRORS in F (inf: random walk) and of the nominal biases.
         gm = bias_model == "gauss_markov"
         self._tau_bg_s = noise.gyro_bias_tau_s if gm else math.inf
@@ -119,7 +125,7 @@ class ErrorStateEKF:
         self.drag_scale_tau_s = float(drag_scale_tau_s)
         self._qc = process_noise_diag(noise, baro_bias_rw_m_sqrt_s, gnss_error_sigma_m, self.gnss_error_tau_s,
                                       fix_error_sigma_m, self.fix_error_tau_s, drag_scale_sigma, self.drag_scale_tau_s,
-                                      wind_rw_mps_sqrt_s)
+                                      wind_rw_mps_sqrt_s, n=self.n)
         self.ins: StrapdownINS | None = None
         self.b_g = np.zeros(3)
         self.b_a = np.zeros(3)
@@ -128,7 +134,7 @@ class ErrorStateEKF:
         self.b_fix = np.zeros(3)
         self.drag_scale = 0.0
         self.wind_ne_mps = np.zeros(2)
-        self.P = np.zeros((N_STATES, N_STATES))
+        self.P = np.zeros((self.n, self.n))
         self.omega_ib_b_rps = np.zeros(3)  # last bias-corrected gyro rate
         self._acc_T = 0.0
         self._acc_fn = [0.0, 0.0, 0.0]
@@ -138,7 +144,7 @@ class ErrorStateEKF:
     # ------------------------------------------------------------------ state
     def initialize(self, t_s: float, lat_rad: float, lon_rad: float, h_m: float, vel_ned_mps,
                    q_nb_wxyz, P0: np.ndarray, b_g=None, b_a=None, b_baro: float = 0.0) -> None:
-        """Set the nominal state and its error covariance P0 (25, 25); the GNSS and fix errors, the drag scale and the wind start at 0."""
+        """Set the nominal state and its error covariance P0 (n, n); the GNSS and fix errors, the drag scale and the wind start at 0."""
         self.ins = StrapdownINS(t_s, lat_rad, lon_rad, h_m, vel_ned_mps, q_nb_wxyz)
         self.b_g = np.zeros(3) if b_g is None else np.array(b_g, float)
         self.b_a = np.zeros(3) if b_a is None else np.array(b_a, float)
@@ -164,7 +170,7 @@ class ErrorStateEKF:
         return quat_to_dcm(self.ins.q)
 
     def covariance(self) -> np.ndarray:
-        """Current error covariance (25, 25), with any pending propagation applied."""
+        """Current error covariance (n, n), with any pending propagation applied."""
         self.flush()
         return self.P.copy()
 
@@ -206,7 +212,7 @@ class ErrorStateEKF:
         f_n = np.array(self._acc_fn) / T
         F = continuous_F(ins.lat_rad, ins.h_m, ins.vel, self.C_nb, f_n,
                          self._tau_bg_s, self._tau_ba_s, tau_gnss_s=self.gnss_error_tau_s, tau_fix_s=self.fix_error_tau_s,
-                         tau_drag_s=self.drag_scale_tau_s)
+                         tau_drag_s=self.drag_scale_tau_s, n=self.n)
         Phi, Qd = discretize(F, self._qc, T)
         if self._acc_turn_rad:
             Qd[IA, IA] += (self._att_var_per_rad * self._acc_turn_rad) * np.eye(3)
@@ -238,7 +244,7 @@ class ErrorStateEKF:
 
     # ---------------------------------------------------------------- updates
     def update(self, kind: str, t_s: float, y, H, R, gate: bool = True) -> CorrectionInfo:
-        """Kalman update with residual y (m,), Jacobian H (m, 25), noise R (m, m).
+        """Kalman update with residual y (m,), Jacobian H (m, n), noise R (m, m).
 
         The NIS y^T S^-1 y is compared with the chi-square quantile at gate_probability;
         a rejected measurement leaves the state untouched.
@@ -263,7 +269,7 @@ class ErrorStateEKF:
         if accepted:
             K = PHt @ S_inv
             dx = K @ y
-            IKH = np.eye(N_STATES) - K @ H
+            IKH = np.eye(self.n) - K @ H
             P = IKH @ P @ IKH.T + K @ R @ K.T  # Joseph form
             self.inject(dx)
             # Covariance reset P <- G P G^T; G is the identity but for its attitude block.
@@ -278,8 +284,8 @@ class ErrorStateEKF:
     def reset_position(self, kind: str, t_s: float, y, H, R, elapsed_s: float) -> CorrectionInfo:
         """Re-acquire the position (and velocity) from a measurement the gate keeps rejecting,
         after elapsed_s seconds without an accepted one: a position fix (residual y (3,) in
-        origin NED m) or a GNSS fix (y (6,): position, then velocity NED m/s); H (n, 25),
-        R (n, n).
+        origin NED m) or a GNSS fix (y (6,): position, then velocity NED m/s); H (k, n),
+        R (k, k).
 
         The position block of P becomes what the disagreement says, H_p^T (y y^T + R) H_p in
         the error frame, with its cross-covariances cleared (the old correlations described a
@@ -319,7 +325,7 @@ class ErrorStateEKF:
                               innovation_cov=info.innovation_cov, nis=nis_before, accepted=True)
 
     def reset_height(self, kind: str, t_s: float, y, H, R, elapsed_s: float) -> CorrectionInfo:
-        """Re-acquire the height from a height measurement (barometer: residual y (1,) m, H (1, 25)
+        """Re-acquire the height from a height measurement (barometer: residual y (1,) m, H (1, n)
         with its down-position entry, R (1, 1)) the gate has rejected for elapsed_s seconds.
 
         The vertical twin of reset_position, as PX4's EKF2 resets its height to the baro after a
@@ -348,7 +354,7 @@ class ErrorStateEKF:
                               innovation_cov=info.innovation_cov, nis=nis_before, accepted=True)
 
     def inject(self, dx: np.ndarray) -> None:
-        """Nominal <- nominal (+) dx (25,)."""
+        """Nominal <- nominal (+) dx (n,)."""
         ins = self.ins
         lat, lon, h, v, q = inject_nav(ins.lat_rad, ins.lon_rad, ins.h_m, ins.vel, ins.q, dx)
         ins.lat_rad, ins.lon_rad, ins.h_m = lat, lon, h
@@ -360,7 +366,8 @@ class ErrorStateEKF:
         self.b_gnss = self.b_gnss + dx[IGN]
         self.b_fix = self.b_fix + dx[IFX]
         self.drag_scale += float(dx[IDS])
-        self.wind_ne_mps = self.wind_ne_mps + dx[IW]
+        if self.n > IW.start:
+            self.wind_ne_mps = self.wind_ne_mps + dx[IW]
 
     # ------------------------------------------------------------------ guard
     def _check(self, where: str) -> None:

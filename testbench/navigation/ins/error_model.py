@@ -62,14 +62,17 @@ IFX = slice(19, 22)
 IDS = 22
 IW = slice(23, 25)
 N_STATES = 25
+N_NO_WIND = 23
+"""States of a filter without the wind (no airspeed aiding): the wind's two come last so that
+such a filter leaves them out, and does not pay for them in every covariance product."""
 N_CORE = 15
 """Number of states that truth can be compared with (without the barometer bias)."""
 
 
 def continuous_F(lat_rad, h_m, vel_ned_mps, C_nb, f_n_mps2, tau_g_s, tau_a_s, tau_baro_s=math.inf,
-                 tau_gnss_s=math.inf, tau_fix_s=math.inf, tau_drag_s=math.inf):
-    """Continuous-time error-state Jacobian F (25, 25) at one nominal state (the wind error, a
-    random walk, has no dynamics: its rows are zero).
+                 tau_gnss_s=math.inf, tau_fix_s=math.inf, tau_drag_s=math.inf, n=N_STATES):
+    """Continuous-time error-state Jacobian F (n, n) at one nominal state, n = N_STATES or
+    N_NO_WIND (the wind error, a random walk, has no dynamics: its rows are zero).
 
     lat_rad, h_m: nominal position; vel_ned_mps (3,); C_nb (3, 3) body->NED;
     f_n_mps2 (3,): specific force resolved in NED (C_nb f_b); tau_*: bias correlation times (s).
@@ -96,7 +99,7 @@ def continuous_F(lat_rad, h_m, vel_ned_mps, C_nb, f_n_mps2, tau_g_s, tau_a_s, ta
     dwen = ((0.0, 0.0, ve / rn**2), (0.0, 0.0, -vn / rm**2), (-ve / (cl * cl * rn * rm), 0.0, -ve * tl / rn**2))
     dwen_dv = ((0.0, 1.0 / rn, 0.0), (-1.0 / rm, 0.0, 0.0), (0.0, -tl / rn, 0.0))
 
-    F = np.zeros((N_STATES, N_STATES))
+    F = np.zeros((n, n))
     # Position: derivative of the curvilinear error map (see module docstring).
     F[0, 0] = -vd / rm
     F[0, 2] = vn / rm
@@ -141,16 +144,18 @@ def continuous_F(lat_rad, h_m, vel_ned_mps, C_nb, f_n_mps2, tau_g_s, tau_a_s, ta
 def process_noise_diag(noise, baro_bias_rw_m_sqrt_s: float, gnss_error_sigma_m: float = 0.0,
                        gnss_error_tau_s: float = math.inf, fix_error_sigma_m: float | np.ndarray = 0.0,
                        fix_error_tau_s: float = math.inf, drag_scale_sigma: float = 0.0,
-                       drag_scale_tau_s: float = math.inf, wind_rw_mps_sqrt_s: float = 0.0) -> np.ndarray:
-    """Diagonal of G Qc G^T (25,): continuous process-noise PSD mapped into the error states.
-    wind_rw_mps_sqrt_s: the horizontal wind's random walk (per axis; 0 without airspeed aiding).
+                       drag_scale_tau_s: float = math.inf, wind_rw_mps_sqrt_s: float = 0.0,
+                       n: int = N_STATES) -> np.ndarray:
+    """Diagonal of G Qc G^T (n,): continuous process-noise PSD mapped into the error states (n:
+    N_STATES, or N_NO_WIND without the wind). wind_rw_mps_sqrt_s: the horizontal wind's random
+    walk (per axis).
 
     The white gyro and accelerometer noises enter through -C_nb; they are isotropic, so
     C_nb (s^2 I) C_nb^T = s^2 I and the mapped PSD stays diagonal. Bias driving noise of a
     Gauss-Markov process with variance s^2 and correlation time tau: 2 s^2 / tau, plus the
     rate random walk's PSD.
     """
-    q = np.empty(N_STATES)
+    q = np.empty(n)
     q[IP] = 0.0
     q[IV] = noise.accel_vrw_mps_sqrt_s**2
     q[IA] = noise.gyro_arw_rad_sqrt_s**2
@@ -161,7 +166,8 @@ def process_noise_diag(noise, baro_bias_rw_m_sqrt_s: float, gnss_error_sigma_m: 
     # fix_error_sigma_m: one figure or (3,) per NED axis.
     q[IFX] = 2.0 * np.square(fix_error_sigma_m) / fix_error_tau_s if math.isfinite(fix_error_tau_s) else 0.0
     q[IDS] = 2.0 * drag_scale_sigma**2 / drag_scale_tau_s if math.isfinite(drag_scale_tau_s) else 0.0
-    q[IW] = wind_rw_mps_sqrt_s**2
+    if n > IW.start:
+        q[IW] = wind_rw_mps_sqrt_s**2
     return q
 
 

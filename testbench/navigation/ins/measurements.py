@@ -1,5 +1,5 @@
 """Measurement models of the error-state EKF: residual y = z - h(nominal), Jacobian
-H = d h(nominal (+) error) / d error at zero error (25 columns, error_model layout), noise R.
+H = d h(nominal (+) error) / d error at zero error (ekf.n columns, error_model layout), noise R.
 
 Each function takes the filter (`ErrorStateEKF`) for its nominal state and returns (y, H, R).
 """
@@ -16,7 +16,7 @@ from testbench.core.errors import InputError
 from testbench.core.units import STANDARD_GRAVITY_MPS2
 from testbench.core.interfaces import GeodeticOrigin
 from testbench.core.rotations import dcm_to_euler, skew, wrap_pi
-from testbench.navigation.ins.error_model import IA, IBA, IBB, IDS, IFX, IGN, IP, IV, IW, N_STATES
+from testbench.navigation.ins.error_model import IA, IBA, IBB, IDS, IFX, IGN, IP, IV, IW
 
 
 def gnss_position(ekf, lat_rad: float, lon_rad: float, alt_m: float, sigma_ned_m):
@@ -31,7 +31,7 @@ def gnss_position(ekf, lat_rad: float, lon_rad: float, alt_m: float, sigma_ned_m
         (r_n + ins.h_m) * math.cos(ins.lat_rad) * math.remainder(lon_rad - ins.lon_rad, 2 * math.pi),
         -(alt_m - ins.h_m),
     ]) - ekf.b_gnss
-    H = np.zeros((3, N_STATES))
+    H = np.zeros((3, ekf.n))
     H[:, IP] = np.eye(3)
     H[:, IGN] = np.eye(3)
     return y, H, np.diag(np.square(sigma_ned_m))
@@ -40,7 +40,7 @@ def gnss_position(ekf, lat_rad: float, lon_rad: float, alt_m: float, sigma_ned_m
 def gnss_velocity(ekf, vel_ned_mps, sigma_ned_mps):
     """GNSS velocity (NED m/s); H = [0 I 0 ...]."""
     y = np.asarray(vel_ned_mps, float) - np.array(ekf.ins.vel)
-    H = np.zeros((3, N_STATES))
+    H = np.zeros((3, ekf.n))
     H[:, IV] = np.eye(3)
     return y, H, np.diag(np.square(sigma_ned_mps))
 
@@ -86,7 +86,7 @@ def position_ned(ekf, pos_ned_m, cov_ned_m2, origin: GeodeticOrigin, att_sensiti
     cov_ned_m2 must be the fix's covariance given the attitude (PositionFix)."""
     ins = ekf.ins
     y = np.asarray(pos_ned_m, float) - nominal_pos_ned(ekf, origin) - ekf.b_fix
-    H = np.zeros((3, N_STATES))
+    H = np.zeros((3, ekf.n))
     H[:, IP] = origin_rotation(ins.lat_rad, ins.lon_rad, origin)
     H[:, IFX] = np.eye(3)
     if att_sensitivity_m_per_rad is not None:
@@ -97,7 +97,7 @@ def position_ned(ekf, pos_ned_m, cov_ned_m2, origin: GeodeticOrigin, att_sensiti
 def baro_altitude(ekf, altitude_m: float, sigma_m: float):
     """Barometric altitude = h + b_baro; H[dp_D] = -1 (dh = -dp_D), H[b_baro] = 1."""
     y = np.array([altitude_m - (ekf.ins.h_m + ekf.b_baro)])
-    H = np.zeros((1, N_STATES))
+    H = np.zeros((1, ekf.n))
     H[0, IP.start + 2] = -1.0
     H[0, IBB] = 1.0
     return y, H, np.array([[sigma_m**2]])
@@ -111,7 +111,7 @@ def mag_vector(ekf, field_b_T, field_ned_T, sigma_T: float):
     C = ekf.C_nb
     B_n = np.asarray(field_ned_T, float)
     y = np.asarray(field_b_T, float) - C.T @ B_n
-    H = np.zeros((3, N_STATES))
+    H = np.zeros((3, ekf.n))
     H[:, IA] = C.T @ skew(B_n)
     return y, H, np.eye(3) * sigma_T**2
 
@@ -143,7 +143,7 @@ def mag_heading(ekf, field_b_T, field_ned_T, sigma_rad: float):
     Rz_T = np.array([[cy, sy, 0.0], [-sy, cy, 0.0], [0.0, 0.0, 1.0]])
     h0 = Rz_T @ B_n
     dh = Rz_T @ skew(B_n)  # d h / d phi (3, 3)
-    H = np.zeros((1, N_STATES))
+    H = np.zeros((1, ekf.n))
     H[0, IA] = -(h0[0] * dh[1] - h0[1] * dh[0]) / (h0[0] ** 2 + h0[1] ** 2)
     return y, H, np.array([[sigma_rad**2]])
 
@@ -181,7 +181,7 @@ def drag_specific_force(ekf, f_b_xy_mps2, v_b_xy_mps, mu_per_s: float, sigma_mps
     v_b = np.asarray(v_b_xy_mps, float)
     mu_eff = mu_per_s * (1.0 + ekf.drag_scale)
     y = np.asarray(f_b_xy_mps2, float) - (-mu_eff * v_b + ekf.b_a[:2])
-    H = np.zeros((2, N_STATES))
+    H = np.zeros((2, ekf.n))
     Ct = C.T[:2]
     H[:, IV] = -mu_eff * Ct
     H[:, IA] = -mu_eff * Ct @ skew(v)
@@ -205,7 +205,7 @@ def true_airspeed(ekf, airspeed_mps: float, sigma_mps: float):
     speed = float(np.linalg.norm(a))
     u = a / speed
     y = np.array([float(airspeed_mps) - speed])
-    H = np.zeros((1, N_STATES))
+    H = np.zeros((1, ekf.n))
     H[0, IV] = u
     H[0, IW] = -u[:2]
     return y, H, np.array([[sigma_mps**2]])
@@ -219,7 +219,7 @@ def zero_sideslip(ekf, sigma_rad: float):
     a = air_velocity_ned(ekf)
     Ct_y = ekf.C_nb[:, 1]  # the body y axis in NED: row y of C^T
     y = np.array([-float(Ct_y @ a)])
-    H = np.zeros((1, N_STATES))
+    H = np.zeros((1, ekf.n))
     H[0, IV] = Ct_y
     H[0, IW] = -Ct_y[:2]
     H[0, IA] = Ct_y @ skew(a)

@@ -29,7 +29,7 @@ from testbench.core.units import DEG_TO_RAD, STANDARD_GRAVITY_MPS2
 from testbench.navigation.ins import measurements as meas
 from testbench.navigation.ins.consistency import error_state
 from testbench.navigation.ins.ekf import ErrorStateEKF
-from testbench.navigation.ins.error_model import IA, IBA, IBB, IBG, IDS, IFX, IGN, IP, IV, IW, N_STATES
+from testbench.navigation.ins.error_model import IA, IBA, IBB, IBG, IDS, IFX, IGN, IP, IV, IW
 from testbench.navigation.ins.imu_noise import imu_noise_from_datasheet, preset_datasheet, preset_names, preset_scale_error
 from testbench.navigation.ins.magnetic import OnboardMagneticModel
 from testbench.navigation.ins.settings import AirspeedAiding, DragAiding, ImuNoiseParams, InitialSigmas, MeasurementSigmas
@@ -39,9 +39,10 @@ log = logging.getLogger(__name__)
 
 @register("navigator", "ins_ekf")
 class InsEkfNavigator(Navigator):
-    """Strapdown INS in WGS-84 with a 25-state error-state EKF (position, velocity, attitude,
+    """Strapdown INS in WGS-84 with a 23-state error-state EKF (position, velocity, attitude,
     gyro and accelerometer biases, barometer bias, the GNSS receiver's and the position fixes'
-    shared errors, the rotor-drag scale, the horizontal wind: error_model), aided by barometer,
+    shared errors, the rotor-drag scale; with airspeed aiding 25, the horizontal wind as well:
+    error_model), aided by barometer,
     magnetometer, GNSS (while it has a fix), absolute position fixes (scene matching), rotor
     drag (multirotors) and airspeed with zero sideslip (fixed wings)."""
 
@@ -188,6 +189,7 @@ class InsEkfNavigator(Navigator):
             scale_corr_angle_rad=math.radians(params.scale_error_angle_deg),
             drag_scale_sigma=self.drag_scale_sigma,
             drag_scale_tau_s=math.inf if params.drag_aiding is None else params.drag_aiding.scale_tau_s,
+            wind_states=params.airspeed_aiding is not None,
             wind_rw_mps_sqrt_s=0.0 if params.airspeed_aiding is None else params.airspeed_aiding.wind_rw_mps_sqrt_s,
         )
         self._mag_model: OnboardMagneticModel | None = None
@@ -228,20 +230,20 @@ class InsEkfNavigator(Navigator):
         self._estimate = None
 
     def alignment_error(self, P0: np.ndarray) -> np.ndarray:
-        """A draw of the alignment's error state (N_STATES,): position (NED m), velocity (NED
+        """A draw of the alignment's error state (ekf.n,): position (NED m), velocity (NED
         m/s) and attitude (rad) from their block of P0, jointly; the other states zero (their
         true values are drawn by the sensors themselves: IMU and barometer turn-on biases, the
         GNSS receiver's correlated error)."""
-        dx = np.zeros(N_STATES)
+        dx = np.zeros(self.ekf.n)
         nav = np.r_[IP, IV, IA]
         dx[nav] = self._alignment_rng.multivariate_normal(np.zeros(len(nav)), P0[np.ix_(nav, nav)], method="cholesky")
         return dx
 
     def initial_covariance(self) -> np.ndarray:
-        """P0 (25, 25) from Params.initial_sigma (GNSS and fix error states and the drag scale: their
-        steady state; the wind: airspeed_aiding.wind_sigma_mps, 0 without airspeed aiding)."""
+        """P0 (ekf.n, ekf.n) from Params.initial_sigma (GNSS and fix error states and the drag scale:
+        their steady state; the wind, with airspeed aiding: airspeed_aiding.wind_sigma_mps)."""
         s = self.params.initial_sigma
-        d = np.empty(N_STATES)
+        d = np.empty(self.ekf.n)
         d[IP] = s.pos_m
         d[IV] = s.vel_mps
         tilt_rad = s.tilt_deg * DEG_TO_RAD if s.tilt_deg else max(self.turn_on[1] * 1e-6, 0.05 * DEG_TO_RAD)
@@ -255,7 +257,8 @@ class InsEkfNavigator(Navigator):
         d[IGN] = self.params.gnss_error_sigma_m
         d[IFX] = self.fix_error_sigma_ned_m
         d[IDS] = self.drag_scale_sigma
-        d[IW] = 0.0 if self.params.airspeed_aiding is None else self.params.airspeed_aiding.wind_sigma_mps
+        if self.params.airspeed_aiding is not None:
+            d[IW] = self.params.airspeed_aiding.wind_sigma_mps
         return np.diag(d**2)
 
     def predict(self, imu: ImuSample) -> None:
@@ -367,7 +370,7 @@ class InsEkfNavigator(Navigator):
 
     # ------------------------------------------------------------------ extras
     def covariance(self) -> np.ndarray:
-        """Full error covariance (25, 25) in the filter's own frames (error_model layout)."""
+        """Full error covariance (ekf.n, ekf.n) in the filter's own frames (error_model layout)."""
         return self.ekf.covariance()
 
     def error_state(self, truth: TruthState, gyro_bias_rps=None, accel_bias_mps2=None) -> np.ndarray:

@@ -27,7 +27,7 @@ def _crabbing_ekf():
     """EKF of a wing flying north at 22 m/s over the ground in a wind of (3, -2) m/s: through
     the air it flies (19, 2, 0) m/s, nose 6 deg right of north (zero sideslip). The nominal
     state is the truth but for the wind, which starts at 0 with a 3 m/s sigma."""
-    ekf = ErrorStateEKF(imu_noise_from_datasheet(0.15, 7.0, 0.02, 14.0), wind_rw_mps_sqrt_s=0.05)
+    ekf = ErrorStateEKF(imu_noise_from_datasheet(0.15, 7.0, 0.02, 14.0), wind_states=True, wind_rw_mps_sqrt_s=0.05)
     d = np.zeros(N_STATES)
     d[IP], d[IV], d[IA] = 1.0, 0.3, 1e-3
     d[IBG], d[IBA] = 1e-5, 1.4e-4

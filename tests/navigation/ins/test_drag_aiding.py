@@ -87,12 +87,12 @@ def test_drag_aiding_on_an_aircraft_without_rotor_drag_is_bad_input(tmp_path, ca
 def _level_ekf(scale_sigma: float):
     """EKF flying north at 4 m/s, level, its nominal at the truth; P0 from small sigmas."""
     from testbench.navigation.ins.ekf import ErrorStateEKF
-    from testbench.navigation.ins.error_model import IA, IBA, IBG, IDS, IP, IV, N_STATES
+    from testbench.navigation.ins.error_model import IA, IBA, IBG, IDS, IP, IV, N_NO_WIND
     from testbench.navigation.ins.imu_noise import imu_noise_from_datasheet
 
     ekf = ErrorStateEKF(imu_noise_from_datasheet(0.15, 7.0, 0.02, 14.0), drag_scale_sigma=scale_sigma,
                         drag_scale_tau_s=60.0)
-    d = np.zeros(N_STATES)
+    d = np.zeros(N_NO_WIND)
     d[IP], d[IV], d[IA] = 1.0, 0.3, 1e-3
     d[IBG], d[IBA] = 1e-5, 1.4e-4
     d[IDS] = scale_sigma

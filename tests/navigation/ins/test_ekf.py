@@ -25,7 +25,7 @@ from testbench.core.messages import (
 from testbench.core.registry import build
 from testbench.core.rotations import quat_to_dcm
 from testbench.navigation.ins.consistency import average_nees_bounds, nees_from_truth
-from testbench.navigation.ins.error_model import N_CORE, N_STATES, inject_nav, nav_error
+from testbench.navigation.ins.error_model import N_CORE, N_NO_WIND, inject_nav, nav_error
 from testbench.navigation.ins.magnetic import OnboardMagneticModel
 
 LAT0, LON0, H0 = math.radians(47.0), math.radians(-97.0), 800.0
@@ -257,7 +257,7 @@ def test_dispatch_and_estimate():
     assert np.all(np.abs(est.omega_b_rps) < 1e-6)  # the Earth's rate is removed
     for c in (est.cov_pos_ned_m2, est.cov_vel_ned_m2s2, est.cov_att_rad2):
         assert np.all(np.linalg.eigvalsh(c) > 0)
-    assert nav.covariance().shape == (N_STATES, N_STATES)
+    assert nav.covariance().shape == (N_NO_WIND, N_NO_WIND)  # no airspeed aiding: no wind states
     baro = nav.correct(BaroSample(10.0, 90000.0, H0 + 1.0))
     assert baro is None  # use_baro off in these tests
     nav2 = _navigator(use_baro=True, use_mag=True)

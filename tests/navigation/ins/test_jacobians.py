@@ -85,7 +85,7 @@ def test_F_matches_finite_differences():
 
 def _ekf_at(x_hat):
     noise = imu_noise_from_datasheet(0.15, 7.0, 0.02, 14.0)
-    ekf = ErrorStateEKF(noise)
+    ekf = ErrorStateEKF(noise, wind_states=True)  # every column, the wind's too
     lat, lon, h, v, q = x_hat
     ekf.initialize(0.0, lat, lon, h, v, q, np.eye(N_STATES))
     ekf.b_gnss = np.array([0.7, -0.4, 1.1])
