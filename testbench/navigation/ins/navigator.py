@@ -4,10 +4,8 @@ from __future__ import annotations
 
 import logging
 import math
-from typing import Literal
 
 import numpy as np
-import pydantic
 
 from testbench.core import geodesy
 from testbench.core.errors import InputError
@@ -23,7 +21,7 @@ from testbench.core.messages import (
     PositionFix,
     TruthState,
 )
-from testbench.core.registry import ParamsModel, register
+from testbench.core.registry import register
 from testbench.core.rotations import quat_to_dcm, quat_to_euler
 from testbench.core.units import DEG_TO_RAD, STANDARD_GRAVITY_MPS2
 from testbench.navigation.ins import measurements as meas
@@ -32,7 +30,7 @@ from testbench.navigation.ins.ekf import ErrorStateEKF
 from testbench.navigation.ins.error_model import IA, IBA, IBB, IBG, IDS, IFX, IGN, IP, IV, IW
 from testbench.navigation.ins.imu_noise import imu_noise_from_datasheet, preset_datasheet, preset_names, preset_scale_error
 from testbench.navigation.ins.magnetic import OnboardMagneticModel
-from testbench.navigation.ins.settings import AirspeedAiding, DragAiding, ImuNoiseParams, InitialSigmas, MeasurementSigmas
+from testbench.navigation.ins.settings import InsEkfParams
 
 log = logging.getLogger(__name__)
 
@@ -42,112 +40,13 @@ class InsEkfNavigator(Navigator):
     """Strapdown INS in WGS-84 with a 23-state error-state EKF (position, velocity, attitude,
     gyro and accelerometer biases, barometer bias, the GNSS receiver's and the position fixes'
     shared errors, the rotor-drag scale; with airspeed aiding 25, the horizontal wind as well:
-    error_model), aided by barometer,
-    magnetometer, GNSS (while it has a fix), absolute position fixes (scene matching), rotor
-    drag (multirotors) and airspeed with zero sideslip (fixed wings)."""
+    error_model), aided by barometer, magnetometer, GNSS (while it has a fix), absolute
+    position fixes (scene matching), rotor drag (multirotors) and airspeed with zero sideslip
+    (fixed wings). Params: settings.InsEkfParams."""
 
-    class Params(ParamsModel):
-        imu_preset: str = "paper"
-        imu: ImuNoiseParams = ImuNoiseParams()
-        imu_bias_model: Literal["random_walk", "gauss_markov"] = "random_walk"
-        """How the filter carries the IMU biases (see ErrorStateEKF): random_walk holds the
-        turn-on bias it has estimated; gauss_markov lets estimates decay towards zero."""
-        initial_sigma: InitialSigmas = InitialSigmas()
-        initial_error: Literal["none", "sampled"] = "none"
-        """The error the pre-flight alignment leaves in the starting position, velocity and
-        attitude. none: the estimate starts at the true state (the alignment is modelled as
-        exact) while the filter claims initial_sigma; sampled: the starting state is displaced
-        by a draw from the filter's own P0 (position, velocity, tilt and heading blocks), from
-        the vehicle's "navigation/alignment" random stream, so that x0 ~ N(x0_hat, P0) as a
-        Monte Carlo consistency (NEES) test assumes. With none, the first seconds of every run
-        are underconfident by construction (error 0 against a 3 m claim)."""
-        meas_sigma: MeasurementSigmas = MeasurementSigmas()
-        gate_probability: float = pydantic.Field(0.999, gt=0.5, le=1.0)
-        cov_interval_s: float = pydantic.Field(0.05, ge=0.0, le=1.0)
-        baro_bias_rw_m_sqrt_s: float = pydantic.Field(0.008, ge=0.0)
-        """Random walk of the barometer's bias (m/sqrt(s)): the barometer sensor's default drift,
-        5 Pa/sqrt(h) = 0.083 Pa/sqrt(s), over dp/dh = 10.4 Pa/m at 1.3 km (12 Pa/m at sea level:
-        0.007). 0.01 left the height 1.6-2x conservative once GNSS was gone (20-run batch)."""
-        use_gnss: bool = True
-        use_gnss_velocity: bool = True
-        gnss_min_interval_s: float = pydantic.Field(1.0, ge=0.0)
-        """GNSS fixes closer than this to the last one used are skipped (cost: the receiver's
-        correlated error is modelled, so the skipped fixes carry little information)."""
-        gnss_error_sigma_m: float = pydantic.Field(1.0, ge=0.0)
-        gnss_error_tau_s: float = pydantic.Field(60.0, gt=0.0)
-        """The receiver's position error that is correlated over tens of seconds (ionosphere,
-        orbit/clock, multipath): steady-state sigma per axis and correlation time of the three
-        Gauss-Markov EKF states that carry it. The defaults are the gnss sensor's defaults
-        (pos_corr_sigma_m, pos_corr_s). A fix's claimed sigma is split into this part and a
-        white remainder; without these states, fusing fix after fix would average the
-        correlated error away and leave the covariance several times too small."""
-        fix_error_sigma_m: float = pydantic.Field(0.3, ge=0.0)
-        fix_error_tau_s: float = pydantic.Field(60.0, gt=0.0)
-        """The same for position fixes (scene matching): the part of a fix's error that
-        successive fixes share, because overlapping frames meet the same disagreement between
-        the scene and the map (season, map georeference, relief). It is taken out of each
-        fix's claimed covariance and carried by three Gauss-Markov states. Default: the ISMN
-        pipeline's default sigma_floor_m (0.3 m, the error its fixes cannot average) over 60 s
-        (about the time to fly one 800 m-altitude footprint); a scenario that raises the
-        matcher's floor (another year of real imagery) raises this with it."""
-        fix_error_turn_deg: float | None = pydantic.Field(None, gt=0.0)
-        """Heading change (deg) over which the fixes' shared error also decorrelates (None: time
-        alone): a turn rotates the camera's view over the ground, so the tiles meet other ground
-        in another geometry (ErrorStateEKF fix_error_turn_rad)."""
-        fix_error_sigma_down_m: float | None = pydantic.Field(None, ge=0.0)
-        """The shared error of the fixes' down axis, when it differs from the horizontal one
-        (None: fix_error_sigma_m). A fix's height comes from the pose solve's scale against the
-        reference elevation, so what fixes share vertically is that elevation model's error,
-        not the map's misregistration: over an exact reference elevation (a procedural world's
-        own heights) it is a few centimetres, over a real DEM its vertical accuracy."""
-        fix_reset_after_s: float = pydantic.Field(5.0, ge=0.0)
-        """Position fixes that keep arriving and keep failing the gate for this long (s) mean
-        the filter, not the fixes, has lost the position (a streak of biased fixes it accepted
-        left it confident and wrong): the next fix resets the position to it, as PX4's EKF2
-        resets to GNSS after a fusion timeout (EKF.reset_position). 0 disables the reset. A
-        matcher that is consistently wrong for this long is followed: the price of never
-        diverging for good on an overconfident covariance. No reset while GNSS fixes are being
-        accepted (then the fixes are what is wrong)."""
-        gnss_reset_after_s: float = pydantic.Field(5.0, ge=0.0)
-        """GNSS fixes that keep arriving and keep failing the gate for this long (s): the filter
-        has diverged (a consumer IMU's unmodelled errors in a hard manoeuvre, a long outage);
-        the next fix resets position and velocity to it and widens the tilt (see
-        ErrorStateEKF.reset_position), as PX4's EKF2 does after a GNSS fusion timeout. 0
-        disables the reset. No reset while position fixes (scene matching) are being accepted:
-        then the filter agrees with them and GNSS is what is wrong (spoofed)."""
-        gyro_scale_error: float | None = pydantic.Field(None, ge=0.0)
-        """1-sigma gyro scale-factor and cross-axis error (rad of attitude error per rad turned);
-        None: the IMU preset's sqrt(scale_factor^2 + misalignment^2) (consumer_mems: 0.0135,
-        1.2 deg after a 90 deg corner; paper: 1.4e-4). The filter has no states for it: it
-        widens the attitude covariance per angle turned (ErrorStateEKF), so that after a corner
-        the filter expects the tilt error the corner left. 0: off."""
-        scale_error_angle_deg: float = pydantic.Field(90.0, gt=0.0)
-        """The turn over which the scale-factor error is modelled as one constant (a corner)."""
-        baro_reset_after_s: float = pydantic.Field(5.0, ge=0.0)
-        """Barometer samples that keep failing the gate for this long (s): the filter's height
-        has diverged (a barometer does not jump); the next sample resets the height to it
-        (ErrorStateEKF.reset_height), as PX4's EKF2 resets its height after a height fusion
-        timeout. Without it a filter that lost its attitude rejected the baro for good and flew
-        the vehicle into the ground (lowalt_ismn_150m, t = 150-212 s). 0 disables the reset."""
-        use_baro: bool = True
-        use_mag: bool = True
-        mag_mode: Literal["heading", "vector"] = "heading"
-        use_position_fix: bool = True
-        fix_attitude_coupling: bool = True
-        """Fuse a position fix that leaned on this filter's attitude (PositionFix.
-        att_sensitivity_m_per_rad: the scene matcher's pose solve takes the INS attitude as its
-        prior) with that coupling, H_phi = -M, and its covariance given the attitude. Off, such a
-        fix is fused as an independent measurement of position, which counts the filter's own
-        attitude information twice (paper_ismn_800m: M is 50-100 m/rad in tilt, i.e. 0.05-0.1 m
-        of fix error per mrad of the filter's tilt error)."""
-        drag_aiding: DragAiding | None = None
-        """Rotor-drag velocity aiding (multirotors in calm air; see DragAiding); None: off."""
-        airspeed_aiding: AirspeedAiding | None = None
-        """True airspeed and zero-sideslip velocity aiding with wind states (fixed wings with an
-        airspeed sensor; see AirspeedAiding); None: off (the airspeed is only passed on to the
-        controller)."""
+    Params = InsEkfParams
 
-    def __init__(self, params: "InsEkfNavigator.Params", *, ctx: BuildContext, aircraft: dict | None = None,
+    def __init__(self, params: InsEkfParams, *, ctx: BuildContext, aircraft: dict | None = None,
                  rng: np.random.Generator | None = None, **_: object):
         self.params = params
         self.ctx = ctx
