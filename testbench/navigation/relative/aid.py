@@ -167,12 +167,7 @@ class RelnavAid(NavigationAid):
         focal = 0.5 * (cam.fx + cam.fy)
         diag = RelnavDiagnostics(t)
         claimed: set[str] = set()
-        # Predicted association never feeds a neighbour some track in any camera carries as its
-        # decoded ID: the ID is the stronger evidence, and an estimate that lost its neighbour
-        # (it rejects that track's bearings) would be held on the wrong vehicle by the
-        # unidentified tracks it still gates, never reaching its reset (17 m in a 15 s run).
-        decoded = {self.ids[x.id_index] for trk in self.trackers.values() for x in trk.tracks
-                   if x.confirmed and x.id_index is not None}
+        decoded = self._decoded_in_view()
         for tr in sorted((x for x in updated if x.confirmed), key=lambda x: -x.id_confidence):
             det = tr.last_detection
             peer = self.ids[tr.id_index] if tr.id_index is not None else None
@@ -208,6 +203,23 @@ class RelnavAid(NavigationAid):
             diag.id_correct = {p: self.bearing_id_ok.get(p, nan2)[0] for p in diag.table}
             diag.id_ambiguous = {p: self.bearing_id_ok.get(p, nan2)[1] for p in diag.table}
         return diag
+
+    def _decoded_in_view(self) -> set[str]:
+        """The neighbours that a confirmed track of some camera carries as its decoded ID and
+        saw in its latest frame (no miss since): predicted association never feeds them.
+
+        Why excluded: the ID is the stronger evidence, and an estimate that lost its neighbour
+        (it rejects that track's bearings) would be held on the wrong vehicle by the
+        unidentified tracks it still gates, never reaching its reset (17 m in a 15 s run).
+        Why only tracks that saw their vehicle: when two vehicles come onto one line of sight
+        their blobs merge into one detection, which often starts a new track (its blink is
+        both codes at once, so it never decodes) while the two decoded tracks coast on without
+        detections for max_misses frames. Excluded by those coasting tracks, neither estimate
+        took the merged blob's bearings, and by the time the tracks died both were too wide to
+        be fed by predicted association (settled): swarm_fixedwing with airspeed aiding, LED,
+        300 s, lost uav3 for good at 111 s that way (uav1 and uav0 1.2 deg apart)."""
+        return {self.ids[x.id_index] for trk in self.trackers.values() for x in trk.tracks
+                if x.confirmed and x.id_index is not None and x.misses == 0}
 
     def _on_part(self, peer: str, bearing: Bearing, det: Detection, cam: Any) -> tuple[Bearing, Detection]:
         """(bearing, detection) of `peer` from one track's detection `det` and its bearing.

@@ -186,6 +186,21 @@ def test_a_bearing_another_neighbour_predicts_better_is_not_fused():
     assert aid.assoc.predicted_peer(aid.filters, on_b, {"b"}) is None
 
 
+def test_only_a_decoded_track_that_saw_its_vehicle_keeps_it_from_predicted_association():
+    """Two neighbours come onto one line of sight: their decoded tracks coast without
+    detections while the merged blob starts an undecoded track. The coasting tracks must not
+    keep the estimates from that blob's bearings (predicted association), or both starve."""
+    from testbench.navigation.relative.tracking import Track
+
+    aid, _, _ = _aid_with_filters({"near": (100.0, 0.0, 0.0), "far": (200.0, 0.4, 0.0)})
+    seen = Track(1, None, 1.0, None, confirmed=True, id_index=aid.ids.index("near"))
+    coasting = Track(2, None, 1.0, None, misses=1, confirmed=True, id_index=aid.ids.index("far"))
+    aid.trackers["front"].tracks = [seen, coasting]
+    assert aid._decoded_in_view() == {"near"}
+    seen.misses = 1
+    assert aid._decoded_in_view() == set()
+
+
 def test_a_merged_detection_gives_the_bearing_of_the_part_the_estimate_predicts():
     """Two neighbours on nearly one line of sight, 100 and 200 m out, 1.5 m apart across it
     (the far one 7 px beside the near one): of a detection holding both, each estimate takes
