@@ -205,21 +205,24 @@ class RelnavAid(NavigationAid):
         return diag
 
     def _decoded_in_view(self) -> set[str]:
-        """The neighbours that a confirmed track of some camera carries as its decoded ID and
-        saw in its latest frame (no miss since): predicted association never feeds them.
+        """The neighbours that a confirmed track of some camera carries as its decoded ID (and,
+        unless params.coasting_tracks_keep_ids, saw in its latest frame: no miss since):
+        predicted association never feeds them.
 
         Why excluded: the ID is the stronger evidence, and an estimate that lost its neighbour
         (it rejects that track's bearings) would be held on the wrong vehicle by the
         unidentified tracks it still gates, never reaching its reset (17 m in a 15 s run).
-        Why only tracks that saw their vehicle: when two vehicles come onto one line of sight
-        their blobs merge into one detection, which often starts a new track (its blink is
-        both codes at once, so it never decodes) while the two decoded tracks coast on without
-        detections for max_misses frames. Excluded by those coasting tracks, neither estimate
-        took the merged blob's bearings, and by the time the tracks died both were too wide to
-        be fed by predicted association (settled): swarm_fixedwing with airspeed aiding, LED,
-        300 s, lost uav3 for good at 111 s that way (uav1 and uav0 1.2 deg apart)."""
+        Why, where asked, only tracks that saw their vehicle: when two vehicles come onto one
+        line of sight their blobs merge into one detection, which often starts a new track (its
+        blink is both codes at once, so it never decodes) while the two decoded tracks coast on
+        without detections for max_misses frames. Excluded by those coasting tracks, neither
+        estimate took the merged blob's bearings, and by the time the tracks died both were too
+        wide to be fed by predicted association (settled): swarm_fixedwing with airspeed
+        aiding, LED, 300 s, lost uav3 for good at 111 s that way (uav1 and uav0 1.2 deg
+        apart). The paper arrowhead keeps the coasting tracks' exclusion (settings.py)."""
+        coasting_too = self.params.coasting_tracks_keep_ids
         return {self.ids[x.id_index] for trk in self.trackers.values() for x in trk.tracks
-                if x.confirmed and x.id_index is not None and x.misses == 0}
+                if x.confirmed and x.id_index is not None and (coasting_too or x.misses == 0)}
 
     def _on_part(self, peer: str, bearing: Bearing, det: Detection, cam: Any) -> tuple[Bearing, Detection]:
         """(bearing, detection) of `peer` from one track's detection `det` and its bearing.

@@ -188,14 +188,17 @@ def test_a_bearing_another_neighbour_predicts_better_is_not_fused():
 
 def test_only_a_decoded_track_that_saw_its_vehicle_keeps_it_from_predicted_association():
     """Two neighbours come onto one line of sight: their decoded tracks coast without
-    detections while the merged blob starts an undecoded track. The coasting tracks must not
-    keep the estimates from that blob's bearings (predicted association), or both starve."""
+    detections while the merged blob starts an undecoded track. With coasting_tracks_keep_ids
+    off, the coasting tracks do not keep the estimates from that blob's bearings (predicted
+    association), where they would both starve."""
     from testbench.navigation.relative.tracking import Track
 
     aid, _, _ = _aid_with_filters({"near": (100.0, 0.0, 0.0), "far": (200.0, 0.4, 0.0)})
     seen = Track(1, None, 1.0, None, confirmed=True, id_index=aid.ids.index("near"))
     coasting = Track(2, None, 1.0, None, misses=1, confirmed=True, id_index=aid.ids.index("far"))
     aid.trackers["front"].tracks = [seen, coasting]
+    assert aid._decoded_in_view() == {"near", "far"}  # the default (the paper arrowhead's)
+    aid.params = aid.params.model_copy(update={"coasting_tracks_keep_ids": False})
     assert aid._decoded_in_view() == {"near"}
     seen.misses = 1
     assert aid._decoded_in_view() == set()
