@@ -101,9 +101,9 @@ class RelnavParams(ParamsModel):
     0.86), coasting_tracks_keep_ids (a decoded track that saw no detection in its latest frame
     still keeps its vehicle from predicted association, as a seen one does; see
     RelnavAid._decoded_in_view: off, the merged blob of two vehicles that came onto one line of
-    sight can feed the nearer estimate while their decoded tracks coast, which kept
-    swarm_fixedwing from losing a follower for good; on the paper arrowhead, whose lattice puts
-    three or four vehicles on every line of sight, it was slightly worse off in three
+    sight can feed the one estimate that predicts it while their decoded tracks coast, which
+    kept swarm_fixedwing from losing a follower for good; on the paper arrowhead, whose lattice
+    puts three or four vehicles on every line of sight, it was slightly worse off in three
     realisations of three: track-frame IDs 0.99001 / 0.98968 / 0.99115 -> 0.98992 / 0.98850 /
     0.98939, formation RMS 2.246 / 2.190 / 1.978 -> 2.255 / 2.282 / 2.001 m, relnav max 4.2 /
     5.1 / 4.0 -> 3.1 / 7.5 / 5.3 m (300 s, LED, B)), skip_ambiguous (leave bearings that
