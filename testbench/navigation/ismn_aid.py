@@ -54,6 +54,7 @@ class IsmnAttempt:
             fix_down_m=float(fix.pos_ned_m[2]) if fix is not None else _NAN,
             sigma_north_m=math.sqrt(cov[0, 0]) if cov is not None else _NAN,
             sigma_east_m=math.sqrt(cov[1, 1]) if cov is not None else _NAN,
+            sigma_down_m=math.sqrt(cov[2, 2]) if cov is not None else _NAN,
             quality=float(fix.quality) if fix is not None else float(getattr(d, "peak_quality", 0.0)),
             latency_ms=float(lat.get("ortho_to_fix", lat.get("total", _NAN))),
             total_ms=float(lat.get("total", _NAN)),

@@ -196,7 +196,7 @@ def _ismn_events(rng, tel: pd.DataFrame, rate_hz: float) -> pd.DataFrame:
         "fix_north_m": np.where(fix, tn + en, np.nan), "fix_east_m": np.where(fix, te + ee, np.nan),
         "fix_down_m": np.where(fix, td, np.nan),
         "truth_north_m": tn, "truth_east_m": te, "truth_down_m": td,
-        "sigma_north_m": sig, "sigma_east_m": sig, "quality": rng.random(n),
+        "sigma_north_m": sig, "sigma_east_m": sig, "sigma_down_m": sig, "quality": rng.random(n),
         "latency_ms": 40.0 + 10.0 * rng.gamma(2.0, 1.0, n),
         "truth_roll_rad": sub["truth_roll_rad"].to_numpy(), "truth_height_agl_m": sub["truth_height_agl_m"].to_numpy(),
         "same_raster": np.zeros(n, bool),
