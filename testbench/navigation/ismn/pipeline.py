@@ -49,6 +49,12 @@ class IsmnParams(ParamsModel):
     use_attitude_prior: bool = True  # MAP pose with the INS attitude covariance as prior
     att_prior_floor_deg: float = 0.1  # added (in quadrature) to the INS attitude sigma in the prior
     sigma_floor_m: float = 0.3  # added to the sigma in quadrature (map georeference, model errors)
+    sigma_floor_down_m: float | None = None
+    """The floor of the fix's down axis (m; None: sigma_floor_m). A fix's height is the pose
+    solve's scale against the reference elevation: a misregistered or seasonally changed map
+    moves the fix sideways but not up, so what no solve can average vertically is the
+    elevation model's error (a few centimetres over a procedural world's own heights, the
+    DEM's vertical accuracy over real terrain), not the horizontal floor."""
     sigma_img_px: float = 0.5  # image-side noise of a correspondence (full-resolution px)
     max_heading_sigma_deg: float | None = None
     """No fix while the estimate's heading sigma exceeds this (None: always try). A heading error
@@ -230,7 +236,8 @@ class IsmnPipeline:
             return fail(f"fix {jump:.0f} m from the estimate, outside the search window", **keep)
         # Errors the solve cannot average are added: sigma_floor_m (map georeference, unmodelled
         # relief, what the tiles share) and, without tiles, the one offset all points share.
-        floor = (p.sigma_floor_m**2 + (shared_px * g) ** 2) * np.eye(3)
+        floor_down_m = p.sigma_floor_m if p.sigma_floor_down_m is None else p.sigma_floor_down_m
+        floor = np.diag([p.sigma_floor_m**2, p.sigma_floor_m**2, floor_down_m**2]) + (shared_px * g) ** 2 * np.eye(3)
         cov = sol.cov_centre_m2 + floor
         quality = float(res.quality * sol.inliers.mean())
         lat["total"] = sum(lat.values())

@@ -78,6 +78,22 @@ def test_pipeline_fix_other_season(seasons, camera, mount, make_estimate):
     assert diag.ortho is not None and diag.map_window is not None and diag.frame_thumb is not None
 
 
+def test_down_floor_is_its_own(seasons, camera, mount, make_estimate):
+    """sigma_floor_down_m sets the floor of the fix's down variance alone: the same frame and
+    estimate give the same fix and horizontal covariance, and the down variance differs by the
+    difference of the two floors' squares (the floor is added in quadrature)."""
+    truth = np.array([40.0, -30.0, -800.0])
+    frame = render_plane_frame(seasons[0], camera, truth, euler_to_dcm(np.radians([1.0, -1.0, 10.0])), mount)
+    est = make_estimate(truth + [5.0, -4.0, 1.0], [1.0, -1.0, 10.0], sigma_pos_m=8.0)
+    same, _ = _pipeline(seasons, camera, mount, sigma_floor_m=0.3).process(frame, 1.0, est)
+    low, _ = _pipeline(seasons, camera, mount, sigma_floor_m=0.3, sigma_floor_down_m=0.05).process(frame, 1.0, est)
+    assert same is not None and low is not None
+    np.testing.assert_array_equal(low.pos_ned_m, same.pos_ned_m)
+    np.testing.assert_allclose(low.cov_ned_m2[:2, :2], same.cov_ned_m2[:2, :2], rtol=1e-12)
+    np.testing.assert_allclose(same.cov_ned_m2[2, 2] - low.cov_ned_m2[2, 2], 0.3**2 - 0.05**2, rtol=1e-9)
+    np.testing.assert_allclose(same.cov_given_att_ned_m2[2, 2] - low.cov_given_att_ned_m2[2, 2], 0.3**2 - 0.05**2, rtol=1e-9)
+
+
 def test_pose_solve_removes_attitude_error_bias(seasons, camera, mount, make_estimate):
     """A 1 deg roll error at 800 m shifts an image-centre lookup by about 14 m; the PnP fix
     does not inherit it."""
