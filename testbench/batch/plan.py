@@ -4,10 +4,16 @@
 `--vary key=DIST` forms (values are drawn from the batch's own "vary" stream, so the same
 batch gives the same draws):
   uniform(a, b) | normal(mu, sigma) | choice(a, b, c) | linspace(a, b)  (evenly over runs)
+  | sequence(a, b, c)  (run i takes the i-th value, cycling: every value used as evenly as can be)
 `key+=DIST` adds the draw to the scenario's own value (a dispersion about it), and several
 comma-separated keys take one and the same draw, so that a geometry moves as a whole:
   --vary "vehicles.uav0.initial.east_m,vehicles.uav0.mission.params.center.east_m+=uniform(-1000, 1000)"
 flies the same racetrack 0-1 km further east or west, start included.
+With several keys, choice and sequence also take bracketed tuples, one value per key, so that
+values that belong together are drawn together: each run of
+  --vary "world.imagery,world.reference_map=sequence([procedural:farmland?seed=101&season=summer,
+          procedural:farmland?seed=101&season=autumn], [procedural:farmland?seed=102&season=summer, ...])"
+flies over its own world, with the reference map another season of that same world.
 """
 
 from __future__ import annotations
@@ -23,7 +29,7 @@ import numpy as np
 from testbench.core.errors import InputError
 from testbench.core.rng import run_seed_sequences
 
-_DIST = re.compile(r"^\s*(uniform|normal|choice|linspace)\s*\((.*)\)\s*$")
+_DIST = re.compile(r"^\s*(uniform|normal|choice|linspace|sequence)\s*\((.*)\)\s*$")
 
 
 @dataclass(frozen=True)
@@ -48,14 +54,19 @@ class Vary:
             raise InputError(f"--vary {text!r}: empty key path")
         m = _DIST.match(rhs)
         if not m:
-            raise InputError(f"--vary {text!r}: unknown distribution {rhs.strip()!r}; expected uniform(a, b), normal(mu, sigma), choice(a, b, ...) or linspace(a, b)")
+            raise InputError(f"--vary {text!r}: unknown distribution {rhs.strip()!r}; expected uniform(a, b), normal(mu, sigma), choice(a, b, ...), linspace(a, b) or sequence(a, b, ...)")
         name, raw_args = m.group(1), m.group(2)
-        args = tuple(_scalar(a) for a in raw_args.split(",") if a.strip())
+        args = tuple(_arg(a, text) for a in _split_top(raw_args, text) if a.strip())
         need = {"uniform": 2, "normal": 2, "linspace": 2}
         if name in need and len(args) != need[name]:
             raise InputError(f"--vary {text!r}: {name} takes {need[name]} arguments, got {len(args)}")
-        if name == "choice" and not args:
-            raise InputError(f"--vary {text!r}: choice needs at least one value")
+        if name in ("choice", "sequence") and not args:
+            raise InputError(f"--vary {text!r}: {name} needs at least one value")
+        n_keys = len(key.split(","))
+        if any(isinstance(a, tuple) for a in args):
+            if name not in ("choice", "sequence") or not all(isinstance(a, tuple) and len(a) == n_keys for a in args):
+                raise InputError(f"--vary {text!r}: bracketed values give one value per key: "
+                                 f"choice or sequence of [v1, ..., v{n_keys}] for the {n_keys} keys, every one of them")
         if name in ("uniform", "normal", "linspace") and not all(isinstance(a, (int, float)) for a in args):
             raise InputError(f"--vary {text!r}: {name} takes numbers")
         if offset and not all(isinstance(a, (int, float)) for a in args):
@@ -65,7 +76,9 @@ class Vary:
     def overrides(self, value: Any) -> tuple[str, ...]:
         """The --set items that give one run this draw (one per key)."""
         op = "+=" if self.offset else "="
-        return tuple(f"{k}{op}{json.dumps(value)}" for k in self.key.split(","))
+        keys = self.key.split(",")
+        values = value if isinstance(value, (tuple, list)) else [value] * len(keys)
+        return tuple(f"{k}{op}{json.dumps(v)}" for k, v in zip(keys, values))
 
     def draw(self, n: int, rng: np.random.Generator) -> list[Any]:
         """n values, one per run, in run order."""
@@ -76,8 +89,42 @@ class Vary:
             return [float(x) for x in rng.normal(a[0], a[1], n)]
         if self.dist == "linspace":
             return [float(x) for x in np.linspace(a[0], a[1], n)]
+        if self.dist == "sequence":
+            return [a[i % len(a)] for i in range(n)]
         idx = rng.integers(0, len(a), n)
         return [a[i] for i in idx]
+
+
+def _split_top(text: str, whole: str) -> list[str]:
+    """Split at the commas outside brackets."""
+    out, depth, cur = [], 0, []
+    for ch in text:
+        if ch == "[":
+            depth += 1
+        elif ch == "]":
+            depth -= 1
+            if depth < 0:
+                break
+        if ch == "," and depth == 0:
+            out.append("".join(cur))
+            cur = []
+        else:
+            cur.append(ch)
+    if depth != 0:
+        raise InputError(f"--vary {whole!r}: unbalanced brackets")
+    out.append("".join(cur))
+    return out
+
+
+def _arg(text: str, whole: str) -> Any:
+    """One distribution argument: a scalar, or a bracketed tuple of scalars."""
+    t = text.strip()
+    if t.startswith("[") and t.endswith("]"):
+        inner = _split_top(t[1:-1], whole)
+        if any("[" in x for x in inner):
+            raise InputError(f"--vary {whole!r}: tuples do not nest")
+        return tuple(_scalar(x) for x in inner)
+    return _scalar(t)
 
 
 def _scalar(text: str) -> Any:
@@ -124,7 +171,12 @@ class BatchPlan:
         draws = [(v, v.draw(self.runs, rng)) for v in self.vary]
         specs = []
         for i, s in enumerate(seqs):
-            varied = {v.key + ("+" if v.offset else ""): vals[i] for v, vals in draws}
+            varied: dict[str, Any] = {}
+            for v, vals in draws:
+                if isinstance(vals[i], tuple):  # one value per key: each recorded under its own key
+                    varied.update(zip(v.key.split(","), vals[i]))
+                else:
+                    varied[v.key + ("+" if v.offset else "")] = vals[i]
             extra = tuple(o for v, vals in draws for o in v.overrides(vals[i]))
             specs.append(RunSpec(i, int(s.entropy), tuple(int(x) for x in s.spawn_key), self.overrides + extra, varied))
         return specs

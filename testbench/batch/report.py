@@ -35,9 +35,16 @@ def _png(fig) -> str:
     return base64.b64encode(buf.getvalue()).decode("ascii")
 
 
+def _number(value: Any) -> float:
+    """A row's value as a float; nan when absent or not a number (a varied map path, an
+    aircraft name: those get no scatter plot)."""
+    if not isinstance(value, (int, float, np.number)):
+        return math.nan
+    return float(value)
+
+
 def _values(rows: list[dict[str, Any]], key: str) -> np.ndarray:
-    x = np.array([float(r.get(key, math.nan)) if r.get(key) is not None else math.nan for r in rows], float)
-    return x
+    return np.array([_number(r.get(key)) for r in rows], float)
 
 
 def write_batch_report(out_dir: Path, rows: list[dict[str, Any]], summary: dict[str, Any], path: Path) -> None:

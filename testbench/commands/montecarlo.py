@@ -16,8 +16,9 @@ def register(subparsers) -> None:
     g.add_argument("--scheduler", help="Dask scheduler address, e.g. tcp://127.0.0.1:8786")
     p.add_argument("--out", required=True, help="batch folder (re-run into it to resume)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY.PATH=VALUE")
-    p.add_argument("--vary", action="append", default=[], metavar="KEY.PATH=DIST", help="uniform(a,b) | normal(mu,sigma) | choice(a,b,..) | linspace(a,b); KEY+=DIST adds "
-                   "the draw to the scenario's value; KEY1,KEY2=DIST gives both keys one draw")
+    p.add_argument("--vary", action="append", default=[], metavar="KEY.PATH=DIST", help="uniform(a,b) | normal(mu,sigma) | choice(a,b,..) | linspace(a,b) | sequence(a,b,..) "
+                   "(run i takes value i, cycling); KEY+=DIST adds the draw to the scenario's value; KEY1,KEY2=DIST "
+                   "gives both keys one draw, and choice/sequence of [v1,v2] tuples one value each")
     p.add_argument("--seed", type=int, help="batch seed (default: the scenario's)")
     p.add_argument("--no-report", action="store_true")
     p.set_defaults(handler=run)

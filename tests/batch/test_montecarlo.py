@@ -5,6 +5,7 @@ import json
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
@@ -114,3 +115,35 @@ def test_cli_checks_the_scenario_before_any_run(tmp_path):
     assert proc.returncode == 2, proc.stdout + proc.stderr
     assert "missing.tif': no such file" in proc.stderr and "Traceback" not in proc.stderr
     assert not out.exists()
+
+
+def test_vary_sequence_of_tuples_gives_each_key_its_own_value_per_run():
+    # Worlds that belong together (imagery and reference map of one world) are drawn together,
+    # and a sequence walks its values in run order, cycling.
+    v = Vary.parse("world.imagery, world.reference_map=sequence([procedural:farmland?seed=1&season=summer, "
+                   "procedural:farmland?seed=1&season=autumn], [a.tif, b.tif])")
+    draws = v.draw(3, np.random.default_rng(0))
+    assert draws == [("procedural:farmland?seed=1&season=summer", "procedural:farmland?seed=1&season=autumn"),
+                     ("a.tif", "b.tif"), ("procedural:farmland?seed=1&season=summer", "procedural:farmland?seed=1&season=autumn")]
+    assert v.overrides(draws[1]) == ('world.imagery="a.tif"', 'world.reference_map="b.tif"')
+    assert Vary.parse("seed=sequence(3, 4)").draw(3, np.random.default_rng(0)) == [3, 4, 3]
+
+
+@pytest.mark.parametrize("text, expected", [
+    ("a,b=sequence([1, 2], [3])", "one value per key"),
+    ("a=choice([1, 2])", "one value per key"),
+    ("a,b=uniform([1, 2], [3, 4])", "one value per key"),
+    ("a,b=choice([1, [2]], [3, 4])", "unbalanced brackets|do not nest"),
+    ("a,b=sequence([1, 2)", "unbalanced brackets"),
+])
+def test_vary_rejects_tuples_that_do_not_fit_the_keys(text, expected):
+    with pytest.raises(InputError, match=expected):
+        Vary.parse(text)
+
+
+def test_plan_records_a_tuple_draw_under_each_key():
+    plan = BatchPlan(SCENARIO, 2, 4, SHORT, (Vary.parse("world.imagery,world.reference_map=sequence([a.tif, b.tif], [c.tif, d.tif])"),))
+    specs = plan.run_specs()
+    assert [s.varied for s in specs] == [{"world.imagery": "a.tif", "world.reference_map": "b.tif"},
+                                         {"world.imagery": "c.tif", "world.reference_map": "d.tif"}]
+    assert specs[1].overrides[-2:] == ('world.imagery="c.tif"', 'world.reference_map="d.tif"')
