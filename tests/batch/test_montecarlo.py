@@ -147,3 +147,11 @@ def test_plan_records_a_tuple_draw_under_each_key():
     assert [s.varied for s in specs] == [{"world.imagery": "a.tif", "world.reference_map": "b.tif"},
                                          {"world.imagery": "c.tif", "world.reference_map": "d.tif"}]
     assert specs[1].overrides[-2:] == ('world.imagery="c.tif"', 'world.reference_map="d.tif"')
+
+
+def test_report_plots_only_numeric_varied_values():
+    from testbench.batch.report import _values
+
+    rows = [{"vary.aircraft": "c172x", "vary.h": 800}, {"vary.aircraft": "tb_fixedwing", "vary.h": None}, {}]
+    assert np.isnan(_values(rows, "vary.aircraft")).all()
+    np.testing.assert_array_equal(_values(rows, "vary.h"), [800.0, np.nan, np.nan])
