@@ -103,8 +103,10 @@ class Navigator(abc.ABC):
         """Propagate with one IMU sample (or to its time, for IMU-less navigators)."""
 
     @abc.abstractmethod
-    def correct(self, measurement: Any) -> CorrectionInfo | None:
-        """Use one aiding measurement; returns what was done, or None if not applicable."""
+    def correct(self, measurement: Any) -> CorrectionInfo | tuple[CorrectionInfo, ...] | None:
+        """Use one aiding measurement; returns what was done, or None if not applicable. A
+        measurement that holds several (a position fix with a heading) may give a tuple of
+        corrections, the first the measurement's own (its accepted verdict)."""
 
     @abc.abstractmethod
     def estimate(self) -> NavEstimate:

@@ -132,6 +132,10 @@ class PositionFix:
     and cov_given_att_ned_m2 (3, 3), the covariance of n. A navigator that models the coupling
     fuses the fix with H_phi = -M and noise cov(n); one that does not uses cov_ned_m2. None: the
     fix is independent of the navigator's attitude.
+
+    heading_rad, heading_sigma_rad: the body's heading (Z-Y-X yaw, rad, from north) that the
+    image alone gives, independent of the navigator's attitude, and its 1-sigma; None when the
+    producer does not offer one.
     """
 
     t_s: float
@@ -141,6 +145,8 @@ class PositionFix:
     source: str = "ismn"
     att_sensitivity_m_per_rad: np.ndarray | None = None
     cov_given_att_ned_m2: np.ndarray | None = None
+    heading_rad: float | None = None
+    heading_sigma_rad: float | None = None
 
 
 @dataclass(frozen=True, slots=True)

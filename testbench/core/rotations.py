@@ -216,3 +216,12 @@ def rot_z(angle_rad):
 def wrap_pi(angle_rad):
     """Wrap angles into [-pi, pi)."""
     return (np.asarray(angle_rad, float) + np.pi) % (2.0 * np.pi) - np.pi
+
+
+def heading_sensitivity(R_nb) -> np.ndarray:
+    """d yaw / d phi (3,) for R_nb perturbed on the NED side, R' = Exp(phi) R_nb (phi: NED small
+    angles, rad): a rotation about down moves the yaw one for one, and one about north or east
+    moves it by as much as the body's x axis leans out of the horizontal."""
+    C = np.asarray(R_nb, float)
+    d = C[0, 0] ** 2 + C[1, 0] ** 2
+    return np.array([-C[0, 0] * C[2, 0] / d, -C[1, 0] * C[2, 0] / d, 1.0])

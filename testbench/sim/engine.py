@@ -172,9 +172,14 @@ class Engine:
             if isinstance(out, GnssFix):
                 v.last_gnss_t_s = out.t_s
             info = v.navigator.correct(out)
-            if info is not None:
-                infos[id(out)] = info
-                self.recorder.correction(v.id, info)
+            if info is None:
+                continue
+            # Several corrections from one measurement (a fix that also carries a heading): the
+            # first is the measurement's own verdict; all are recorded.
+            several = info if isinstance(info, tuple) else (info,)
+            infos[id(out)] = several[0]
+            for one in several:
+                self.recorder.correction(v.id, one)
         for diag, produced in attempts:
             if diag is None:
                 continue

@@ -41,3 +41,17 @@ def test_body_to_nav_sense():
 def test_skew_is_cross_product():
     a, b = RNG.normal(size=3), RNG.normal(size=3)
     np.testing.assert_allclose(r.skew(a) @ b, np.cross(a, b), atol=1e-15)
+
+
+def test_heading_sensitivity_matches_finite_differences():
+    """d yaw / d phi for R' = Exp(phi) R, at a pitched and rolled attitude."""
+    from testbench.core.rotations import dcm_to_euler, euler_to_dcm, heading_sensitivity, quat_to_dcm, rotvec_to_quat
+
+    R = euler_to_dcm(np.radians([20.0, -35.0, 130.0]))
+    h = heading_sensitivity(R)
+    for axis in range(3):
+        d = np.zeros(3)
+        d[axis] = 1e-6
+        fd = (dcm_to_euler(quat_to_dcm(rotvec_to_quat(d)) @ R)[2] - dcm_to_euler(quat_to_dcm(rotvec_to_quat(-d)) @ R)[2]) / 2e-6
+        assert abs(fd - h[axis]) < 1e-6
+    np.testing.assert_allclose(heading_sensitivity(np.eye(3)), [0.0, 0.0, 1.0])

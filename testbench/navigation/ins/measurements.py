@@ -15,7 +15,7 @@ from testbench.core import geodesy
 from testbench.core.errors import InputError
 from testbench.core.units import STANDARD_GRAVITY_MPS2
 from testbench.core.interfaces import GeodeticOrigin
-from testbench.core.rotations import dcm_to_euler, skew, wrap_pi
+from testbench.core.rotations import dcm_to_euler, heading_sensitivity, skew, wrap_pi
 from testbench.navigation.ins.error_model import IA, IBA, IBB, IDS, IFX, IGN, IP, IV, IW
 
 
@@ -225,3 +225,14 @@ def zero_sideslip(ekf, sigma_rad: float):
     H[0, IA] = Ct_y @ skew(a)
     sigma = sigma_rad * float(np.linalg.norm(a))
     return y, H, np.array([[sigma**2]])
+
+
+def fix_heading(ekf, heading_rad: float, sigma_rad: float):
+    """A heading measured independently of the filter (a scene-matching pose solve's image-only
+    yaw): y = heading - nominal yaw (wrapped), H on the attitude error through
+    heading_sensitivity (a tilt error moves the yaw where the body's x axis is not level)."""
+    C = ekf.C_nb
+    y = np.array([float(wrap_pi(heading_rad - dcm_to_euler(C)[2]))])
+    H = np.zeros((1, ekf.n))
+    H[0, IA] = heading_sensitivity(C)
+    return y, H, np.array([[float(sigma_rad) ** 2]])

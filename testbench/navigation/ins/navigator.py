@@ -214,6 +214,14 @@ class InsEkfNavigator(Navigator):
             kind = f"position_fix:{measurement.source}"
             info, self._last_fix_ok_t_s = self._update_or_reset(
                 kind, t, y, H, R, self._last_fix_ok_t_s, self._last_gnss_ok_t_s, p.fix_reset_after_s)
+            if p.use_fix_heading and measurement.heading_rad is not None and info is not None and info.accepted:
+                # The image-only heading of the same solve: nearly uncorrelated with its centre in
+                # a nadir view (a rotation about the vertical through the centre moves no point
+                # near it), so fused as a measurement of its own after the position; only from a
+                # fix the gate let through (a false match's heading is as false as its position).
+                heading = ekf.update(f"heading_fix:{measurement.source}", t,
+                                     *meas.fix_heading(ekf, measurement.heading_rad, measurement.heading_sigma_rad))
+                return info, heading
             return info
         if isinstance(measurement, BaroSample):
             if not p.use_baro:

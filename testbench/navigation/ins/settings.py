@@ -225,6 +225,10 @@ class InsEkfParams(ParamsModel):
     fix is fused as an independent measurement of position, which counts the filter's own
     attitude information twice (paper_ismn_800m: M is 50-100 m/rad in tilt, i.e. 0.05-0.1 m
     of fix error per mrad of the filter's tilt error)."""
+    use_fix_heading: bool = True
+    """Fuse the heading a position fix carries (PositionFix.heading_rad: the image-only heading of
+    the scene matcher's pose solve, ismn `heading_from_image`) as a measurement of the filter's
+    yaw, gated like any other."""
     drag_aiding: DragAiding | None = None
     """Rotor-drag velocity aiding (multirotors in calm air; see DragAiding); None: off."""
     airspeed_aiding: AirspeedAiding | None = None

@@ -26,7 +26,7 @@ from testbench.navigation.ismn.area import NccMatcher
 from testbench.navigation.ismn.mapcache import MapWindowCache, quantise_gsd
 from testbench.navigation.ismn.geometry import estimate_pose, footprint_bounds, nadir_gsd_m, predict_search_window
 from testbench.navigation.ismn.ortho import Orthorectifier, to_grey_u8
-from testbench.navigation.ismn.pose import solve_camera_pose
+from testbench.navigation.ismn.pose import image_heading, solve_camera_pose
 from testbench.navigation.ismn.types import IsmnDiagnostics, MatchPrior
 
 log = logging.getLogger(__name__)
@@ -56,6 +56,16 @@ class IsmnParams(ParamsModel):
     elevation model's error (a few centimetres over a procedural world's own heights, the
     DEM's vertical accuracy over real terrain), not the horizontal floor."""
     sigma_img_px: float = 0.5  # image-side noise of a correspondence (full-resolution px)
+    heading_from_image: bool = False
+    """Give each fix the body heading the image alone fixes (the pose solve's attitude without
+    the INS prior) and its sigma, for the navigator to fuse (PositionFix.heading_rad). Across a
+    wide nadir view the tiles' rotation pins the heading far better than a magnetometer:
+    paper_ismn_800m frames, 100 fixes, 0.013 deg RMS (claimed 0.014 deg) against the filter's
+    0.093 deg."""
+    heading_floor_deg: float = 0.02
+    """Added in quadrature to that heading's sigma: the camera-to-IMU boresight's yaw, which no
+    image can see (the simulated mount is exact; a calibrated real one is known to a few
+    hundredths of a degree)."""
     max_heading_sigma_deg: float | None = None
     """No fix while the estimate's heading sigma exceeds this (None: always try). A heading error
     rotates the ortho view against the map, and the area matchers search translations: their
@@ -243,7 +253,12 @@ class IsmnPipeline:
         lat["total"] = sum(lat.values())
         lat["ortho_to_fix"] = lat["ortho"] + lat["match"] + lat["pose"]
         coupled = att_cov is not None
+        heading = heading_sigma = None
+        if p.heading_from_image and sol.att_img_ned_rad is not None:
+            heading, heading_sigma = image_heading(sol.att_img_ned_rad, sol.cov_att_img_rad2, R_nb)
+            heading_sigma = math.hypot(heading_sigma, math.radians(p.heading_floor_deg))
         fix = PositionFix(float(t_s), pos_fix, cov, quality, "ismn",
                           att_sensitivity_m_per_rad=sol.att_sensitivity_m_per_rad if coupled else None,
-                          cov_given_att_ned_m2=sol.cov_centre_given_att_m2 + floor if coupled else None)
+                          cov_given_att_ned_m2=sol.cov_centre_given_att_m2 + floor if coupled else None,
+                          heading_rad=heading, heading_sigma_rad=heading_sigma)
         return fix, IsmnDiagnostics(t_s, dict(lat), **{**keep, "peak_quality": quality})

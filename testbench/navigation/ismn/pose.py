@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from testbench.core.rotations import quat_to_rotvec, dcm_to_quat, rotvec_to_quat, quat_to_dcm, skew
+from testbench.core.rotations import dcm_to_euler, heading_sensitivity, quat_to_rotvec, dcm_to_quat, rotvec_to_quat, quat_to_dcm, skew
 
 CHI2_2DOF_999 = 13.8155
 
@@ -52,6 +52,14 @@ class PoseSolution:
     rms_px: float
     att_sensitivity_m_per_rad: np.ndarray
     cov_centre_given_att_m2: np.ndarray
+    att_img_ned_rad: np.ndarray | None = None
+    """(3,) the camera attitude the image alone gives, as the NED small rotation psi from the
+    seed attitude R_nc0 (R_nc_img = Exp(psi) R_nc0): with a prior, one Gauss-Newton step of the
+    image's own normal equations from the MAP solution; without, the solution itself. None
+    when the image alone does not fix the attitude (singular normal equations)."""
+    cov_att_img_rad2: np.ndarray | None = None
+    """(3, 3) its covariance (NED small angles), from the image alone: independent of the
+    prior, so a filter may fuse it as a measurement of its own attitude."""
 
 
 def _exp(rotvec):
@@ -177,7 +185,7 @@ def solve_camera_pose(
         if method == "opencv":
             iterations = 8  # refine the inlier set with Gauss-Newton
     r, J, W = _linearise(K, R, c, X[inl], uv[inl], sigma_ground_m, sigma_img_px)
-    A_img, _ = _normal_equations(J, W, r)  # information of the image alone
+    A_img, b_img = _normal_equations(J, W, r)  # information of the image alone
     A = A_img.copy()
     Jpsi = _prior_jacobian(R)
     if P_prior_inv is not None:
@@ -194,6 +202,36 @@ def solve_camera_pose(
         cov_img = (cov @ A_img @ cov)[:3, :3]
     else:
         M, cov_img = np.zeros((3, 3)), cov[:3, :3]
+    att_img, cov_att_img = _image_only_attitude(A_img, b_img, R, np.asarray(R_nc0, float), cov_att,
+                                                P_prior_inv is not None)
     rms = float(np.sqrt(np.mean(np.sum(r**2, axis=1)))) if len(r) else float("nan")
     return PoseSolution(c, R, 0.5 * (cov[:3, :3] + cov[:3, :3].T), cov_att, inl, rms,
-                        M, 0.5 * (cov_img + cov_img.T))
+                        M, 0.5 * (cov_img + cov_img.T), att_img, cov_att_img)
+
+
+def image_heading(att_img_ned_rad: np.ndarray, cov_att_img_rad2: np.ndarray, R_nb_seed: np.ndarray) -> tuple[float, float]:
+    """(heading rad, 1-sigma rad) of the body whose attitude is Exp(psi) R_nb_seed, psi the
+    image-only attitude (PoseSolution.att_img_ned_rad, taken about the seed attitude of the
+    solve) with covariance cov_att_img_rad2 (3, 3)."""
+    R_nb = _exp(np.asarray(att_img_ned_rad, float)) @ np.asarray(R_nb_seed, float)
+    h = heading_sensitivity(R_nb)
+    return float(dcm_to_euler(R_nb)[2]), float(np.sqrt(max(h @ np.asarray(cov_att_img_rad2, float) @ h, 0.0)))
+
+
+def _image_only_attitude(A_img, b_img, R, R_nc0, cov_att, had_prior: bool):
+    """(psi (3,), cov (3, 3)) of the attitude the image alone gives (PoseSolution.att_img_ned_rad),
+    or (None, None) when its normal equations are singular."""
+    if not had_prior:
+        return _log(R @ R_nc0.T), cov_att
+    # The MAP solution balances the image's pull against the prior's; the image's own optimum
+    # is one Gauss-Newton step of its normal equations away (the problem is near-linear there).
+    try:
+        step = np.linalg.solve(A_img, b_img)
+        cov = np.linalg.inv(A_img)
+    except np.linalg.LinAlgError:
+        return None, None
+    if not (np.all(np.isfinite(step)) and np.all(np.isfinite(cov))):
+        return None, None
+    R_img = R @ _exp(step[3:])
+    cov_ned = R @ cov[3:, 3:] @ R.T
+    return _log(R_img @ R_nc0.T), 0.5 * (cov_ned + cov_ned.T)

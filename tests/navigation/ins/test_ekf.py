@@ -170,6 +170,32 @@ def test_gating_rejects_wrong_position_fix_and_accepts_good_one():
     assert good.kind == "position_fix:ismn"
 
 
+def test_a_fix_heading_corrects_the_yaw_only_with_an_accepted_fix():
+    """A position fix that carries the image's heading: the filter (heading sigma 2 deg, no
+    magnetometer) takes it as a yaw measurement after the position, and returns both
+    corrections; a fix the gate rejects takes its heading with it; use_fix_heading=False
+    ignores it."""
+    true_ned = geodesy.geodetic_to_ned(LAT0, LON0, H0, ORIGIN.lat_rad, ORIGIN.lon_rad, ORIGIN.alt_m)
+    cov = np.diag([25.0, 25.0, 100.0])
+    heading, sigma = math.radians(0.5), math.radians(0.01)
+    nav = _converged_static_nav()
+    yaw0 = nav.estimate().rpy_rad[2]
+    bad = nav.correct(PositionFix(10.0, true_ned + np.array([200.0, 0.0, 0.0]), cov, 0.9,
+                                  heading_rad=heading, heading_sigma_rad=sigma))
+    assert not isinstance(bad, tuple) and not bad.accepted
+    assert nav.estimate().rpy_rad[2] == yaw0
+    pos, head = nav.correct(PositionFix(10.0, true_ned, cov, 0.9, heading_rad=heading, heading_sigma_rad=sigma))
+    assert pos.kind == "position_fix:ismn" and head.kind == "heading_fix:ismn"
+    assert pos.accepted and head.accepted and head.innovation.shape == (1,)
+    est = nav.estimate()
+    assert abs(math.degrees(est.rpy_rad[2] - heading)) < 0.002
+    assert math.degrees(math.sqrt(est.cov_att_rad2[2, 2])) < 0.011
+    off = _converged_static_nav(use_fix_heading=False)
+    info = off.correct(PositionFix(10.0, true_ned, cov, 0.9, heading_rad=heading, heading_sigma_rad=sigma))
+    assert not isinstance(info, tuple) and info.accepted
+    assert abs(math.degrees(off.estimate().rpy_rad[2] - yaw0)) < 1e-6
+
+
 def test_fixes_rejected_past_the_timeout_reset_the_position():
     """A filter confidently 200 m off (fixes rejected) re-acquires after fix_reset_after_s of
     rejections: the next fix resets the position to it; with the reset off it never does."""

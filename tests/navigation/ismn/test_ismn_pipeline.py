@@ -57,6 +57,38 @@ def test_pose_attitude_prior_sensitivity_matches_finite_differences(camera, moun
     assert np.all(free.att_sensitivity_m_per_rad == 0.0)
     np.testing.assert_allclose(free.cov_centre_given_att_m2, free.cov_centre_m2)
 
+
+def test_image_only_attitude_does_not_lean_on_the_prior(camera, mount):
+    """Noisy correspondences and a prior whose mean is 0.3 deg off in heading and tight (0.05
+    deg): the MAP attitude leans toward the prior, the image-only attitude does not. It equals
+    the solve without any prior, and its covariance is that solve's; image_heading turns it
+    into the body heading with a 1-sigma from that covariance."""
+    from testbench.core.rotations import dcm_to_euler, quat_to_dcm, rotvec_to_quat
+    from testbench.navigation.ismn.pose import image_heading
+
+    rng = np.random.default_rng(8)
+    R_nb = euler_to_dcm(np.radians([2.0, 3.0, 40.0]))
+    c, R_nc = camera_pose_ned(np.array([0.0, 0.0, -800.0]), R_nb, mount)
+    X = np.c_[rng.uniform(-700, 700, (40, 2)) + c[:2], np.zeros(40)]
+    xc = (X - c) @ R_nc
+    uv = (camera.K @ xc.T)[:2].T / xc[:, 2:3] + rng.normal(0.0, 0.5, (40, 2))
+    off = quat_to_dcm(rotvec_to_quat(np.radians([0.0, 0.0, 0.3])))
+    R0 = off @ R_nc  # the INS: 0.3 deg off in heading, claiming 0.05 deg
+    P = np.diag(np.radians([0.05, 0.05, 0.05]) ** 2)
+    sol = solve_camera_pose(X, uv, camera.K, c, R0, 1.0, P, iterations=20)
+    free = solve_camera_pose(X, uv, camera.K, c, R0, 1.0, None, iterations=20)
+    yaw = lambda R: float(dcm_to_euler(R @ mount.R_bc.T)[2])  # noqa: E731
+    R_img = quat_to_dcm(rotvec_to_quat(sol.att_img_ned_rad)) @ R0
+    assert abs(np.degrees(yaw(sol.R_nc) - yaw(R_nc))) > 0.05  # the MAP leans on the prior
+    assert abs(np.degrees(yaw(R_img) - yaw(free.R_nc))) < 1e-3  # the image alone does not
+    # (linearised at the MAP solution instead of the free one: equal to a few parts in 1000)
+    np.testing.assert_allclose(sol.cov_att_img_rad2, free.cov_att_rad2, rtol=0.02, atol=1e-9)
+    heading, sigma = image_heading(sol.att_img_ned_rad, sol.cov_att_img_rad2, R0 @ mount.R_bc.T)
+    assert abs(heading - yaw(R_img)) < 1e-9
+    assert abs(np.degrees(heading - float(dcm_to_euler(R_nb)[2]))) < 4 * np.degrees(sigma)
+    assert 0.0 < np.degrees(sigma) < 0.05
+
+
 def _pipeline(seasons, camera, mount, **kw):
     return IsmnPipeline(camera, mount, RasterMapSource(seasons[1]), None, NccMatcher(), IsmnParams(**kw))
 
