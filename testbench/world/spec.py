@@ -2,6 +2,10 @@
 
     procedural:farmland?seed=7&season=summer&size_km=6&gsd_m=1
 
+Optional `sun_azimuth_deg` (from north, clockwise) and `sun_elevation_deg` put the sun where
+the season's table does not (imagery of the same season taken at another date or hour: the
+shadows and hillshade move, nothing else does).
+
 generates the world (imagery.tif + elevation.tif, georeferenced at the scenario origin) once
 into a cache folder keyed by the spec AND the origin, so that several vehicles and runs reuse
 it. Files are written to temporary names and renamed: a reader never sees a partial file.
@@ -22,8 +26,10 @@ from testbench.core.interfaces import GeodeticOrigin
 log = logging.getLogger(__name__)
 
 PREFIX = "procedural:"
-_KEYS = {"seed": int, "season": str, "size_km": float, "gsd_m": float}
-_DEFAULTS = {"seed": 0, "season": "summer", "size_km": 6.0, "gsd_m": 1.0}
+_KEYS = {"seed": int, "season": str, "size_km": float, "gsd_m": float, "sun_azimuth_deg": float,
+         "sun_elevation_deg": float}
+_DEFAULTS = {"seed": 0, "season": "summer", "size_km": 6.0, "gsd_m": 1.0, "sun_azimuth_deg": None,
+             "sun_elevation_deg": None}
 
 
 @dataclass(frozen=True)
@@ -35,10 +41,29 @@ class ProceduralSpec:
     season: str = "summer"
     size_km: float = 6.0
     gsd_m: float = 1.0
+    sun_azimuth_deg: float | None = None  # None: the season's
+    sun_elevation_deg: float | None = None
 
     def canonical(self) -> str:
+        # The sun only when given, so that the season's own worlds keep their names and caches.
+        sun = "".join(f"&{k}={v:g}" for k, v in (("sun_azimuth_deg", self.sun_azimuth_deg),
+                                                  ("sun_elevation_deg", self.sun_elevation_deg)) if v is not None)
         return (f"{PREFIX}{self.terrain}?seed={self.seed}&season={self.season}"
-                f"&size_km={self.size_km:g}&gsd_m={self.gsd_m:g}")
+                f"&size_km={self.size_km:g}&gsd_m={self.gsd_m:g}{sun}")
+
+    def appearance(self):
+        """The Season to generate with: the season's table, its sun replaced where given."""
+        import dataclasses
+        import math
+
+        from testbench.world.procedural import season_from
+
+        s = season_from(self.season)
+        if self.sun_azimuth_deg is not None:
+            s = dataclasses.replace(s, sun_azimuth_rad=math.radians(self.sun_azimuth_deg))
+        if self.sun_elevation_deg is not None:
+            s = dataclasses.replace(s, sun_elevation_rad=math.radians(self.sun_elevation_deg))
+        return s
 
 
 def is_procedural(spec) -> bool:
@@ -46,7 +71,8 @@ def is_procedural(spec) -> bool:
 
 
 def parse_spec(spec: str) -> ProceduralSpec:
-    """Parse 'procedural:TERRAIN?key=value&...' (keys: seed, season, size_km, gsd_m)."""
+    """Parse 'procedural:TERRAIN?key=value&...' (keys: seed, season, size_km, gsd_m,
+    sun_azimuth_deg, sun_elevation_deg)."""
     from testbench.world.procedural import TERRAINS, season_from
 
     body = spec.strip()[len(PREFIX):]
@@ -66,6 +92,9 @@ def parse_spec(spec: str) -> ProceduralSpec:
     vals["season"] = season_from(vals["season"]).name
     if not (vals["size_km"] > 0 and vals["gsd_m"] > 0):
         raise InputError(f"world '{spec}': size_km and gsd_m must be > 0")
+    el = vals["sun_elevation_deg"]
+    if el is not None and not 0.0 < el <= 90.0:
+        raise InputError(f"world '{spec}': sun_elevation_deg={el:g} must be in (0, 90] degrees above the horizon")
     return ProceduralSpec(terrain, **vals)
 
 
@@ -92,7 +121,7 @@ def ensure_world(spec: ProceduralSpec, origin: GeodeticOrigin, cache_dir=None) -
         return img, dem
     log.info("generating procedural world %s into %s", spec.canonical(), d)
     # Band by band: a large world never sits whole in memory (files appear atomically).
-    write_world_streamed(d, spec.terrain, spec.size_km, spec.gsd_m, spec.seed, spec.season, origin)
+    write_world_streamed(d, spec.terrain, spec.size_km, spec.gsd_m, spec.seed, spec.appearance(), origin)
     return img, dem
 
 

@@ -181,3 +181,25 @@ def test_imagery_window_is_clipped_to_the_map(tmp_path, origin, monkeypatch):
     # A small footprint gets a margin, but the window stays within _WHOLE_MAP_MAX_PX a side.
     small = RunWorld(world, origin, cache_dir=tmp_path).imagery_for((-20.0, 20.0, -20.0, 20.0), 4.0)
     assert max(small.shape) <= 50 + 1 and min(small.shape) > 40 / 4, small.shape
+
+
+def test_spec_sun_moves_the_shadows_only(tmp_path, origin):
+    """sun_azimuth_deg / sun_elevation_deg: the same world under another sun (same relief, the
+    layout's edges kept, the shading changed); the season's own world keeps its cache name;
+    an elevation outside (0, 90] is an input error naming the key."""
+    base = "procedural:farmland?seed=4&season=autumn&size_km=0.5&gsd_m=2"
+    spec = parse_spec(base + "&sun_azimuth_deg=150&sun_elevation_deg=62")
+    assert spec.canonical().endswith("&sun_azimuth_deg=150&sun_elevation_deg=62")
+    assert parse_spec(base).canonical() == base and "sun" not in parse_spec(base).canonical()
+    own = open_world_imagery(base, origin, cache_dir=tmp_path)
+    moved = open_world_imagery(spec.canonical(), origin, cache_dir=tmp_path)
+    assert own.path != moved.path
+    a = own.read_local(-250, 250, -250, 250, 2.0).data
+    b = moved.read_local(-250, 250, -250, 250, 2.0).data
+    assert np.abs(a.astype(int) - b.astype(int)).mean() > 0.5  # the shading moved
+    corr = np.corrcoef(_grad(a).ravel(), _grad(b).ravel())[0, 1]
+    assert corr > 0.7, corr  # the layout did not
+    z0 = open_elevation(base, origin, cache_dir=tmp_path).height_m(10.0, -20.0)
+    assert open_elevation(spec.canonical(), origin, cache_dir=tmp_path).height_m(10.0, -20.0) == z0
+    with pytest.raises(InputError, match="sun_elevation_deg"):
+        parse_spec(base + "&sun_elevation_deg=95")
