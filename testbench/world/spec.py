@@ -14,8 +14,10 @@ Cache root: `cache_dir`, else $TESTBENCH_CACHE, else ~/.cache/testbench/worlds.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import logging
+import math
 import os
 from dataclasses import dataclass
 from urllib.parse import parse_qsl
@@ -53,9 +55,6 @@ class ProceduralSpec:
 
     def appearance(self):
         """The Season to generate with: the season's table, its sun replaced where given."""
-        import dataclasses
-        import math
-
         from testbench.world.procedural import season_from
 
         s = season_from(self.season)

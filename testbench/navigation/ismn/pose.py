@@ -226,10 +226,10 @@ def _image_only_attitude(A_img, b_img, R, R_nc0, cov_att, had_prior: bool):
     # The MAP solution balances the image's pull against the prior's; the image's own optimum
     # is one Gauss-Newton step of its normal equations away (the problem is near-linear there).
     try:
-        step = np.linalg.solve(A_img, b_img)
         cov = np.linalg.inv(A_img)
     except np.linalg.LinAlgError:
         return None, None
+    step = cov @ b_img
     if not (np.all(np.isfinite(step)) and np.all(np.isfinite(cov))):
         return None, None
     R_img = R @ _exp(step[3:])
