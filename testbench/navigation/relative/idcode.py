@@ -15,11 +15,20 @@ ones for a second or more. `recent_posterior(n)` scores only the last n observat
 chips still thresholded over the whole window, so a jump in brightness, near to far, also
 reads as chips that contradict the old word): the tracker revokes an ID the recent chips
 contradict and `forget_older(n)` drops the old vehicle's chips.
+
+Merged blobs: two neighbours on one line of sight, a few pixels apart, fall into one detection,
+whose level is then the sum of two blinks: b + a_j c_j(f) + a_k c_k(f). Thresholded into chips it
+often decodes, confidently, as one of the two (the brighter blink), while the detection's centre
+lies on the other. `mixture()` fits the window's levels with one code word and with every pair
+of words (linear least squares, an offset and one amplitude per word) and reports how much
+better the best pair explains them (MixtureFit): the tracker can withhold the ID from a track
+whose blink is a mixture (tracking.TrackerSettings.mixture_min_ratio).
 """
 
 from __future__ import annotations
 
 from collections import deque
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -45,6 +54,27 @@ def chips_from_levels(levels: np.ndarray, min_ratio: float = 1.4) -> np.ndarray 
     if len(lo) == 0 or hi.mean() - lo.mean() < np.log(min_ratio):
         return None
     return (x >= thr).astype(np.uint8)
+
+
+@dataclass(frozen=True)
+class MixtureFit:
+    """How the window's levels fit one code word against two (IdDecoder.mixture).
+
+    single: the best single word's vehicle index; pair: the best pair's (j, k); amplitudes:
+    their level amplitudes (a_j, a_k), in the pair order; f_stat: (RSS_single - RSS_pair) /
+    (RSS_pair / (n - 3)), the F statistic of the pair's extra amplitude (n observations);
+    ratio: the smaller amplitude over the larger, 0 when either is not positive."""
+
+    single: int
+    pair: tuple[int, int]
+    amplitudes: tuple[float, float]
+    f_stat: float
+    ratio: float
+
+    def is_mixture(self, min_ratio: float, min_f: float) -> bool:
+        """Both words blink with at least min_ratio of the larger amplitude, and the pair
+        explains the levels better than one word by an F statistic above min_f."""
+        return self.ratio >= min_ratio and self.f_stat > min_f
 
 
 class IdDecoder:
@@ -116,6 +146,53 @@ class IdDecoder:
         """Keep only the last n observations."""
         while len(self.obs) > n:
             self.obs.popleft()
+
+    def mixture(self, min_obs: int = 8) -> MixtureFit | None:
+        """Fit the window's levels as one blink and as the sum of two (module docstring);
+        None with fewer than min_obs observations, fewer than three allowed words, or a
+        decoder that searches the code phase (its chips have no known position).
+
+        One word k: level = b + a c_k(f); a pair j, k: level = b + a_j c_j(f) + a_k c_k(f), c
+        the 0/1 chips at each observation's LED frame f; least squares through the normal
+        equations of all words and pairs at once (a small ridge keeps a word constant over the
+        window from making them singular)."""
+        n = len(self.obs)
+        idx = np.flatnonzero(self.allowed)
+        if n < max(min_obs, 4) or len(idx) < 3 or self.search_phase:
+            return None
+        fi = np.fromiter((o[0] for o in self.obs), np.int64, n)
+        y = np.fromiter((o[1] for o in self.obs), np.float64, n)
+        C = self.book[idx][:, fi % CODE_LENGTH].astype(np.float64)  # (m, n) chips, 0/1
+        s = C.sum(axis=1)  # (m,) = c.c, chips being 0/1
+        cy = C @ y
+        sy, yy = float(y.sum()), float(y @ y)
+        ridge = 1e-9 * n
+        # One word: [[n, s], [s, s]] [b, a] = [sy, cy].
+        det1 = (n + ridge) * (s + ridge) - s * s
+        a1 = ((n + ridge) * cy - s * sy) / det1
+        b1 = (sy - s * a1) / (n + ridge)
+        rss1 = yy - b1 * sy - a1 * cy
+        i1 = int(np.argmin(rss1))
+        # Pairs: the 3x3 normal equations of every (j, k), j < k, solved in one batch.
+        j, k = np.triu_indices(len(idx), 1)
+        S = C @ C.T  # (m, m) chip overlaps
+        G = np.empty((len(j), 3, 3))
+        G[:, 0, 0] = n
+        G[:, 0, 1] = G[:, 1, 0] = s[j]
+        G[:, 0, 2] = G[:, 2, 0] = s[k]
+        G[:, 1, 1] = s[j]
+        G[:, 2, 2] = s[k]
+        G[:, 1, 2] = G[:, 2, 1] = S[j, k]
+        G[:, [0, 1, 2], [0, 1, 2]] += ridge
+        rhs = np.stack([np.full(len(j), sy), cy[j], cy[k]], axis=1)
+        beta = np.linalg.solve(G, rhs[..., None])[..., 0]
+        rss2 = yy - (beta * rhs).sum(axis=1)
+        i2 = int(np.argmin(rss2))
+        aj, ak = float(beta[i2, 1]), float(beta[i2, 2])
+        lo, hi = min(aj, ak), max(aj, ak)
+        ratio = lo / hi if lo > 0.0 else 0.0
+        f_stat = float((rss1[i1] - rss2[i2]) / max(rss2[i2] / max(n - 3, 1), 1e-12 * max(yy, 1e-12)))
+        return MixtureFit(int(idx[i1]), (int(idx[j[i2]]), int(idx[k[i2]])), (aj, ak), f_stat, ratio)
 
     def _likelihood_posterior(self, fi: np.ndarray, bits: np.ndarray) -> np.ndarray:
         """Posterior over the code book of chips `bits` seen at LED frames `fi`."""

@@ -46,6 +46,9 @@ class FilterParams(ParamsModel):
 
 
 class TrackerParams(ParamsModel):
+    """The image tracker's settings (relnav.tracker): tracking.TrackerSettings says what each
+    one means."""
+
     n_init: int = pydantic.Field(3, ge=1)
     max_misses: int = pydantic.Field(5, ge=0)
     gate_prob: float = pydantic.Field(0.999, gt=0, lt=1)
@@ -56,6 +59,8 @@ class TrackerParams(ParamsModel):
     revoke_window: int = pydantic.Field(led_code.CODE_LENGTH, ge=0)
     revoke_prob: float = pydantic.Field(1e-3, ge=0, lt=1)
     id_keep_prob: float = pydantic.Field(0.5, ge=0, lt=1)
+    mixture_min_ratio: float | None = pydantic.Field(None, gt=0, le=1)
+    mixture_min_f: float = pydantic.Field(2.0, ge=0)
 
 
 class RelnavParams(ParamsModel):

@@ -161,3 +161,49 @@ def test_an_id_contradicted_by_the_last_code_cycle_is_revoked():
             level = _level(4, k) if k not in errors else 5.0 - _level(4, k)  # a flipped chip
             tr.update(0.1 * k, k, [_det(500, 300, 40.0 * level)])
         assert tr.tracks[0].id_index == 4 and tr.counters["id_revoked"] == 0
+
+
+def test_mixture_tells_two_blinks_in_one_blob_from_one_blink():
+    """Levels summing vehicle 3's blink (amplitude 12) and vehicle 7's (5) fit the pair (3, 7)
+    far better than any single word; one vehicle's blink with level noise and a flipped chip
+    does not look like a mixture."""
+    rng = np.random.default_rng(4)
+    merged, single = IdDecoder(10, exclude=(0,)), IdDecoder(10, exclude=(0,))
+    for k in range(2 * led_code.CODE_LENGTH):
+        merged.observe(k, 0.05 + 12.0 * led_code.chip(3, k) + 5.0 * led_code.chip(7, k) + rng.normal(0, 0.3))
+        flipped = k == 20
+        single.observe(k, 0.05 + 12.0 * (led_code.chip(3, k) ^ flipped) + rng.normal(0, 0.3))
+    mix = merged.mixture()
+    assert mix.pair == (3, 7) and mix.is_mixture(0.2, 2.0)
+    assert abs(mix.amplitudes[0] - 12.0) < 0.5 and abs(mix.amplitudes[1] - 5.0) < 0.5
+    assert merged.decode()[0] in (3, 7)  # what thresholded chips make of it: one of the two
+    one = single.mixture()
+    assert one.single == 3 and not one.is_mixture(0.2, 2.0)
+    assert IdDecoder(10).mixture() is None  # no levels yet
+
+
+def test_a_track_on_a_merged_blob_carries_no_id_while_merged():
+    """Vehicle 3's blob merged with the dimmer blob of vehicle 6 behind it: without the
+    mixture test the track decodes 3, confidently (its chips are 3's); with it, no ID while
+    the blobs stay merged, and vehicle 6 alone once they part and the track keeps 6."""
+    L = led_code.CODE_LENGTH
+
+    def level(k):
+        return 40.0 * _level(3, k) + 12.0 * _level(6, k)
+
+    plain = Tracker(n_vehicles=10, own_index=0, settings=TrackerSettings(n_init=1))
+    for k in range(2 * L):
+        plain.update(0.1 * k, k, [_det(500, 300, level(k))])
+    assert plain.tracks[0].id_index == 3 and plain.tracks[0].id_confidence > 0.99
+
+    tr = Tracker(n_vehicles=10, own_index=0, settings=TrackerSettings(n_init=1, mixture_min_ratio=0.2))
+    for k in range(2 * L):
+        tr.update(0.1 * k, k, [_det(500, 300, level(k))])
+    (track,) = tr.tracks
+    assert track.id_index is None and set(track.mixture) == {3, 6}
+    assert tr.counters["id_mixture_frames"] > 0 and tr.counters["id_mixture_dropped"] == 0
+    shown = []
+    for k in range(2 * L, 5 * L):
+        tr.update(0.1 * k, k, [_det(500, 300, 12.0 * _level(6, k))])
+        shown.append(track.id_index)
+    assert 3 not in shown and shown[-1] == 6
