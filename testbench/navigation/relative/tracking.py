@@ -63,8 +63,9 @@ class TrackerSettings:
     two vehicles' blobs merged and carries no ID while it does (None: no such test; 0.2 and 2
     marked 77 % of the wrong track-frames and 3 % of the right ones on single vehicles, and
     took the paper arrowhead's track-frame IDs from 0.989-0.991 to 0.9987, but its start-up
-    formation lost the estimates those merged tracks had started, so the shipped scenarios
-    leave it off: docs/measurements.md, "What the wrong track IDs are")."""
+    formation, sensitive to the set of neighbours each follower estimates, came out worse in
+    two of three realisations, so the shipped scenarios leave it off: docs/measurements.md,
+    "What the wrong track IDs are")."""
 
     sigma_px_min: float = 0.7
     pos_sigma_frac: float = 0.1
