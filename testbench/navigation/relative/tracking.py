@@ -273,20 +273,8 @@ class Tracker:
             return
         k = int(np.argmax(post))
         conf = float(post[k])
-        if self.s.mixture_min_ratio is not None and (tr.id_index is not None or conf >= self.s.id_confidence):
-            mix = tr.decoder.mixture(min_obs=CODE_LENGTH)
-            if mix is None and tr.id_index is None:
-                tr.id_confidence = conf
-                return  # a new ID waits for a code cycle of levels: a mixture shows over one
-            if mix is not None and mix.is_mixture(self.s.mixture_min_ratio, self.s.mixture_min_f):
-                self.counters["id_mixture_frames"] += 1
-                self.counters["id_mixture_dropped"] += int(tr.id_index is not None)
-                tr.id_index, tr.id_confidence, tr.mixture = None, 0.0, mix.pair
-                # The window's chips are a mixture, and the track may leave with either vehicle
-                # when the blobs part: decode afresh from the chips that follow.
-                tr.decoder.forget_older(0)
-                return
-            tr.mixture = None
+        if self.s.mixture_min_ratio is not None and self._withheld_as_mixture(tr, conf):
+            return
         if tr.id_index is not None:
             tr.id_confidence = float(post[tr.id_index])
         if conf < self.s.id_confidence:
@@ -298,6 +286,28 @@ class Tracker:
         elif tr.id_index != k:
             self.counters["id_changes"] += 1
         tr.id_index, tr.id_confidence = k, conf
+
+    def _withheld_as_mixture(self, tr: Track, conf: float) -> bool:
+        """Whether `tr`, whose best word has posterior `conf`, must carry no ID after this
+        frame: its window of levels mixes two code words (module docstring; the ID and the
+        chips go), or it would take a new ID before a code cycle of levels, the span over which
+        a mixture shows."""
+        if tr.id_index is None and conf < self.s.id_confidence:
+            return False  # no ID to keep or to assign
+        mix = tr.decoder.mixture(min_obs=CODE_LENGTH)
+        if mix is None and tr.id_index is None:
+            tr.id_confidence = conf
+            return True
+        if mix is None or not mix.is_mixture(self.s.mixture_min_ratio, self.s.mixture_min_f):
+            tr.mixture = None
+            return False
+        self.counters["id_mixture_frames"] += 1
+        self.counters["id_mixture_dropped"] += int(tr.id_index is not None)
+        tr.id_index, tr.id_confidence, tr.mixture = None, 0.0, mix.pair
+        # The window's chips are a mixture, and the track may leave with either vehicle when the
+        # blobs part: decode afresh from the chips that follow.
+        tr.decoder.forget_older(0)
+        return True
 
     def confirmed(self) -> list[Track]:
         return [t for t in self.tracks if t.confirmed]
