@@ -85,12 +85,8 @@ class RelnavAid(NavigationAid):
                              f"not of the vehicle, so their size says nothing of the range: leave target_extent_m unset")
         # Detectors that give boxes only (the CNN) get their LED level read inside each box.
         self.led_reader = LedDetector(LedDetector.Params(**params.led_reader))
-        tp = params.tracker
-        ts = TrackerSettings(n_init=tp.n_init, max_misses=tp.max_misses, gate_prob=tp.gate_prob, id_confidence=tp.id_confidence,
-                             p_chip=tp.p_chip, accel_px_s2=tp.accel_px_s2, search_phase=tp.search_phase,
-                             revoke_window=tp.revoke_window, revoke_prob=tp.revoke_prob,
-                             id_keep_prob=tp.id_keep_prob, mixture_min_ratio=tp.mixture_min_ratio,
-                             mixture_min_f=tp.mixture_min_f)
+        # Every relnav.tracker key is a TrackerSettings field of the same name.
+        ts = TrackerSettings(**params.tracker.model_dump())
         self.trackers = {n: Tracker(len(self.ids), self.own_index, ts) for n in params.cameras}
         self.fset = FilterSettings(**params.filter.model_dump())
         self.assoc = AssociationRules(self.fset.bearing_sigma_px, params.assoc_max_sigma_m, params.report_max_age_s,
