@@ -126,6 +126,30 @@ def test_down_floor_is_its_own(seasons, camera, mount, make_estimate):
     np.testing.assert_allclose(same.cov_given_att_ned_m2[2, 2] - low.cov_given_att_ned_m2[2, 2], 0.3**2 - 0.05**2, rtol=1e-9)
 
 
+def test_appearance_term_follows_quality(seasons, camera, mount, make_estimate):
+    """appearance_sigma_m adds s(q) = a ((1 - q) / (1 - q_ref))^k in quadrature on every axis,
+    q the fix's quality: the same frame gives the same fix, its covariance grows by s(q)^2 I
+    (the attitude-conditioned one likewise), and s at the reference quality is a itself. The
+    left three eighths of the frame are moved 6 px, so that their tiles disagree with the rest
+    (the quality, the agreeing share of the tiles, drops to about 0.6)."""
+    truth = np.array([40.0, -30.0, -800.0])
+    frame = render_plane_frame(seasons[0], camera, truth, euler_to_dcm(np.radians([1.0, -1.0, 10.0])), mount)
+    w = frame.shape[1] * 3 // 8
+    frame[:, :w] = np.roll(frame[:, :w], 6, axis=0)
+    est = make_estimate(truth + [5.0, -4.0, 1.0], [1.0, -1.0, 10.0], sigma_pos_m=8.0)
+    plain, _ = _pipeline(seasons, camera, mount).process(frame, 1.0, est)
+    pipe = _pipeline(seasons, camera, mount, appearance_sigma_m=0.4, appearance_ref_quality=0.6, appearance_exponent=3.0)
+    fix, _ = pipe.process(frame, 1.0, est)
+    assert plain is not None and fix is not None
+    np.testing.assert_array_equal(fix.pos_ned_m, plain.pos_ned_m)
+    assert 0.3 < fix.quality < 0.9
+    s = 0.4 * ((1.0 - fix.quality) / 0.4) ** 3
+    np.testing.assert_allclose(fix.cov_ned_m2 - plain.cov_ned_m2, s**2 * np.eye(3), atol=1e-12)
+    np.testing.assert_allclose(fix.cov_given_att_ned_m2 - plain.cov_given_att_ned_m2, s**2 * np.eye(3), atol=1e-12)
+    assert pipe._appearance_sigma_m(0.6) == pytest.approx(0.4)
+    assert pipe._appearance_sigma_m(1.0) == 0.0 and pipe._appearance_sigma_m(0.2) == pytest.approx(3.2)
+
+
 def test_pose_solve_removes_attitude_error_bias(seasons, camera, mount, make_estimate):
     """A 1 deg roll error at 800 m shifts an image-centre lookup by about 14 m; the PnP fix
     does not inherit it."""
