@@ -268,7 +268,8 @@ class IsmnPipeline:
         if jump > p.max_jump_factor * win.margin_m + 2 * g:
             return fail(f"fix {jump:.0f} m from the estimate, outside the search window", **keep)
         # Errors the solve cannot average are added: sigma_floor_m (map georeference, unmodelled
-        # relief, what the tiles share) and, without tiles, the one offset all points share.
+        # relief, what the tiles share), without tiles the one offset all points share, and the
+        # appearance term (what the tiles share under changed shadows, larger as fewer agree).
         floor_down_m = p.sigma_floor_m if p.sigma_floor_down_m is None else p.sigma_floor_down_m
         quality = float(res.quality * sol.inliers.mean())
         floor = (np.diag([p.sigma_floor_m**2, p.sigma_floor_m**2, floor_down_m**2])
