@@ -64,7 +64,8 @@ def chi2_threshold(probability: float, dof: int) -> float:
 
 class ErrorStateEKF:
     """Error-state EKF of one vehicle. Shapes: P (n, n), n = self.n: N_STATES (25) with
-    wind_states, else N_NO_WIND (23); error vector layout in error_model.
+    wind_states, else N_NO_WIND (23), plus 3 with the appearance states; error vector layout in
+    error_model (the appearance states, self.i_app, come last).
 
     noise: IMU noise model; gate_probability: chi-square gate (e.g. 0.999; 1.0 disables);
     cov_interval_s: covariance propagation interval (0: every IMU sample);
@@ -82,6 +83,13 @@ class ErrorStateEKF:
     scale's error (error_model, dsd; 0 sigma: the drag model is taken as exact).
     wind_states: carry the horizontal wind (two more states, for airspeed aiding);
     wind_rw_mps_sqrt_s: its random walk (per axis).
+    appearance_sigma_m: steady-state sigma (one figure or (3,) per NED axis) of a second error
+    that successive position fixes share, the appearance error (0: no such states). Three
+    Gauss-Markov states after the others (self.i_app), with fix_error_tau_s and
+    fix_error_turn_rad, seen by each fix with its own gain (measurements.position_ned): scene
+    matching under changed shadows errs together over a region, more as fewer tiles agree, and
+    the b_fix states, which every fix sees alike, cannot hold an error that a good fix shares
+    less than a poor one.
     gyro_scale_sigma, scale_corr_angle_rad: the gyros' scale-factor and cross-axis error (1 sigma,
     rad per rad turned) is a constant error in each rate the IMU reads, which the error state
     does not carry: it enters P as attitude noise per angle turned, s^2 Theta |dtheta| per axis,
@@ -103,11 +111,17 @@ class ErrorStateEKF:
                  fix_error_turn_rad: float = math.inf, bias_model: str = "random_walk", gyro_scale_sigma: float = 0.0,
                  scale_corr_angle_rad: float = 0.5 * math.pi, drag_scale_sigma: float = 0.0,
                  drag_scale_tau_s: float = math.inf, wind_states: bool = False, wind_rw_mps_sqrt_s: float = 0.0,
-                 vehicle_id: str | None = None):
+                 appearance_sigma_m: float | np.ndarray = 0.0, vehicle_id: str | None = None):
         if bias_model not in ("random_walk", "gauss_markov"):
             raise ValueError(f"bias_model {bias_model!r}: expected 'random_walk' or 'gauss_markov'")
         self.noise = noise
-        self.n = N_STATES if wind_states else N_NO_WIND
+        self.wind_states = bool(wind_states)
+        n_base = N_STATES if wind_states else N_NO_WIND
+        app_var_m2 = np.broadcast_to(np.square(np.asarray(appearance_sigma_m, float)), (3,)).copy()
+        self._app_var_m2 = app_var_m2
+        self.i_app: slice | None = slice(n_base, n_base + 3) if np.any(app_var_m2 > 0.0) else None
+        """The appearance error's three states (NED m), or None without them."""
+        self.n = n_base + (3 if self.i_app is not None else 0)
         """Number of error states (the length of dx, the size of P)."""
         # Correlation times of the IMU bias ERRORS in F (inf: random walk) and of the nominal biases.
         gm = bias_model == "gauss_markov"
@@ -125,13 +139,18 @@ class ErrorStateEKF:
         self.drag_scale_tau_s = float(drag_scale_tau_s)
         self._qc = process_noise_diag(noise, baro_bias_rw_m_sqrt_s, gnss_error_sigma_m, self.gnss_error_tau_s,
                                       fix_error_sigma_m, self.fix_error_tau_s, drag_scale_sigma, self.drag_scale_tau_s,
-                                      wind_rw_mps_sqrt_s, n=self.n)
+                                      wind_rw_mps_sqrt_s, n=n_base)
+        if self.i_app is not None:
+            # The same Gauss-Markov process as the shared fix error, with its own sigma.
+            q_app = 2.0 * app_var_m2 / self.fix_error_tau_s if math.isfinite(self.fix_error_tau_s) else np.zeros(3)
+            self._qc = np.concatenate([self._qc, q_app])
         self.ins: StrapdownINS | None = None
         self.b_g = np.zeros(3)
         self.b_a = np.zeros(3)
         self.b_baro = 0.0
         self.b_gnss = np.zeros(3)
         self.b_fix = np.zeros(3)
+        self.b_app = np.zeros(3)
         self.drag_scale = 0.0
         self.wind_ne_mps = np.zeros(2)
         self.P = np.zeros((self.n, self.n))
@@ -151,6 +170,7 @@ class ErrorStateEKF:
         self.b_baro = float(b_baro)
         self.b_gnss = np.zeros(3)
         self.b_fix = np.zeros(3)
+        self.b_app = np.zeros(3)
         self.drag_scale = 0.0
         self.wind_ne_mps = np.zeros(2)
         self.P = np.array(P0, float)
@@ -213,6 +233,9 @@ class ErrorStateEKF:
         F = continuous_F(ins.lat_rad, ins.h_m, ins.vel, self.C_nb, f_n,
                          self._tau_bg_s, self._tau_ba_s, tau_gnss_s=self.gnss_error_tau_s, tau_fix_s=self.fix_error_tau_s,
                          tau_drag_s=self.drag_scale_tau_s, n=self.n)
+        ia = self.i_app
+        if ia is not None and math.isfinite(self.fix_error_tau_s):
+            F[ia, ia] = -np.eye(3) / self.fix_error_tau_s
         Phi, Qd = discretize(F, self._qc, T)
         if self._acc_turn_rad:
             Qd[IA, IA] += (self._att_var_per_rad * self._acc_turn_rad) * np.eye(3)
@@ -227,6 +250,7 @@ class ErrorStateEKF:
             self.b_gnss *= math.exp(-T / self.gnss_error_tau_s)
         if math.isfinite(self.fix_error_tau_s):
             self.b_fix *= math.exp(-T / self.fix_error_tau_s)
+            self.b_app *= math.exp(-T / self.fix_error_tau_s)
         if math.isfinite(self.drag_scale_tau_s):
             self.drag_scale *= math.exp(-T / self.drag_scale_tau_s)
         if self._acc_yaw_rad > 0.0:
@@ -236,6 +260,11 @@ class ErrorStateEKF:
             self.P[:, IFX] *= a
             self.P[IFX, IFX] += (1.0 - a * a) * np.diag(self._fix_var_m2)
             self.b_fix *= a
+            if ia is not None:
+                self.P[ia, :] *= a
+                self.P[:, ia] *= a
+                self.P[ia, ia] += (1.0 - a * a) * np.diag(self._app_var_m2)
+                self.b_app *= a
         self._acc_T = 0.0
         self._acc_fn = [0.0, 0.0, 0.0]
         self._acc_turn_rad = 0.0
@@ -366,8 +395,10 @@ class ErrorStateEKF:
         self.b_gnss = self.b_gnss + dx[IGN]
         self.b_fix = self.b_fix + dx[IFX]
         self.drag_scale += float(dx[IDS])
-        if self.n > IW.start:
+        if self.wind_states:
             self.wind_ne_mps = self.wind_ne_mps + dx[IW]
+        if self.i_app is not None:
+            self.b_app = self.b_app + dx[self.i_app]
 
     # ------------------------------------------------------------------ guard
     def _check(self, where: str) -> None:

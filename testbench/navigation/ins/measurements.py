@@ -76,19 +76,27 @@ def nominal_pos_ned(ekf, origin: GeodeticOrigin) -> np.ndarray:
     return c_ne0 @ (_ecef(ins.lat_rad, ins.lon_rad, ins.h_m) - r0)
 
 
-def position_ned(ekf, pos_ned_m, cov_ned_m2, origin: GeodeticOrigin, att_sensitivity_m_per_rad=None):
+def position_ned(ekf, pos_ned_m, cov_ned_m2, origin: GeodeticOrigin, att_sensitivity_m_per_rad=None,
+                 appearance_gain: float = 0.0):
     """Position fix in NED at the scenario origin (scene matching): the true position plus the
     error successive fixes share (the b_fix state, origin NED) plus white noise of covariance
     cov_ned_m2; H = [R_on 0 ... I].
 
     att_sensitivity_m_per_rad (3, 3), M: the fix leaned on the filter's own attitude (a pose
     solve with the INS attitude as prior), so its error holds -M phi; then H_phi = -M, and
-    cov_ned_m2 must be the fix's covariance given the attitude (PositionFix)."""
+    cov_ned_m2 must be the fix's covariance given the attitude (PositionFix).
+
+    appearance_gain g (dimensionless): with the filter's appearance states (ekf.i_app), the fix
+    also holds g b_app, the appearance error scaled by how strongly this fix shows it
+    (ErrorStateEKF appearance_sigma_m); H[:, i_app] = g I. Ignored without those states."""
     ins = ekf.ins
     y = np.asarray(pos_ned_m, float) - nominal_pos_ned(ekf, origin) - ekf.b_fix
     H = np.zeros((3, ekf.n))
     H[:, IP] = origin_rotation(ins.lat_rad, ins.lon_rad, origin)
     H[:, IFX] = np.eye(3)
+    if ekf.i_app is not None and appearance_gain:
+        y = y - appearance_gain * ekf.b_app
+        H[:, ekf.i_app] = appearance_gain * np.eye(3)
     if att_sensitivity_m_per_rad is not None:
         H[:, IA] = -np.asarray(att_sensitivity_m_per_rad, float)
     return y, H, np.asarray(cov_ned_m2, float)

@@ -90,6 +90,7 @@ class InsEkfNavigator(Navigator):
             drag_scale_tau_s=math.inf if params.drag_aiding is None else params.drag_aiding.scale_tau_s,
             wind_states=params.airspeed_aiding is not None,
             wind_rw_mps_sqrt_s=0.0 if params.airspeed_aiding is None else params.airspeed_aiding.wind_rw_mps_sqrt_s,
+            appearance_sigma_m=params.fix_appearance_sigma_m,
         )
         self._mag_model: OnboardMagneticModel | None = None
         self._airspeed: float | None = None
@@ -158,7 +159,19 @@ class InsEkfNavigator(Navigator):
         d[IDS] = self.drag_scale_sigma
         if self.params.airspeed_aiding is not None:
             d[IW] = self.params.airspeed_aiding.wind_sigma_mps
+        if self.ekf.i_app is not None:
+            d[self.ekf.i_app] = self.params.fix_appearance_sigma_m
         return np.diag(d**2)
+
+    def appearance_gain(self, quality: float) -> float:
+        """g(q) (dimensionless) of a fix of quality q on the appearance states
+        (InsEkfParams.fix_appearance_sigma_m); 0 without them."""
+        p = self.params
+        if self.ekf.i_app is None:
+            return 0.0
+        q = min(max(float(quality), 0.0), 1.0)
+        g = ((1.0 - q) / (1.0 - p.fix_appearance_ref_quality)) ** p.fix_appearance_exponent
+        return min(g, p.fix_appearance_max_gain)
 
     def predict(self, imu: ImuSample) -> None:
         self._require_init()
@@ -210,7 +223,8 @@ class InsEkfNavigator(Navigator):
             lam_min = float(np.linalg.eigvalsh(0.5 * (cov + cov.T)).min())
             # (A diagonal below 0.99 lam_min I keeps the remainder positive definite.)
             white = cov - np.diag(np.minimum(self.fix_error_sigma_ned_m**2, 0.99 * lam_min))
-            y, H, R = meas.position_ned(ekf, measurement.pos_ned_m, white, self.ctx.origin, M)
+            y, H, R = meas.position_ned(ekf, measurement.pos_ned_m, white, self.ctx.origin, M,
+                                        appearance_gain=self.appearance_gain(measurement.quality))
             kind = f"position_fix:{measurement.source}"
             info, self._last_fix_ok_t_s = self._update_or_reset(
                 kind, t, y, H, R, self._last_fix_ok_t_s, self._last_gnss_ok_t_s, p.fix_reset_after_s)

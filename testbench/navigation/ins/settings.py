@@ -185,6 +185,23 @@ class InsEkfParams(ParamsModel):
     reference elevation, so what fixes share vertically is that elevation model's error,
     not the map's misregistration: over an exact reference elevation (a procedural world's
     own heights) it is a few centimetres, over a real DEM its vertical accuracy."""
+    fix_appearance_sigma_m: float = pydantic.Field(0.0, ge=0.0)
+    """A second shared error of the position fixes, the appearance error (m, steady-state sigma
+    per axis; 0: none): what the map's date and the image's disagree on over a region (shadows
+    that moved, fields ploughed) moves every tile alike, so the pose solve's scatter cannot see
+    it, and it lasts as long as the region stays in view. A fix shows it the more, the fewer of
+    its tiles agree: with quality q, a fix holds g(q) b_app, g = min(max_gain, ((1 - q) / (1 -
+    ref_quality)) ** exponent), b_app three Gauss-Markov states with fix_error_tau_s and
+    fix_error_turn_deg. Unlike a white claim that grows as q falls, the filter then expects a
+    run of poor fixes to err together (a world under another sun: 1.4 m low for 40 s at q 0.6),
+    and unlike scaling b_fix, a poor fix does not make the good ones after it carry its error."""
+    fix_appearance_ref_quality: float = pydantic.Field(0.6, ge=0.0, lt=1.0)
+    """Quality (the fix's own figure, in [0, 1]) at which g = 1."""
+    fix_appearance_exponent: float = pydantic.Field(3.0, gt=0.0)
+    """How steeply g grows as the quality falls."""
+    fix_appearance_max_gain: float = pydantic.Field(3.0, gt=0.0)
+    """Cap on g: a fix of very low quality is mostly gated out, and one that passes must not
+    pin the appearance states with a gain of 10."""
     fix_reset_after_s: float = pydantic.Field(5.0, ge=0.0)
     """Position fixes that keep arriving and keep failing the gate for this long (s) mean
     the filter, not the fixes, has lost the position (a streak of biased fixes it accepted

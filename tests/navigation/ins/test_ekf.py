@@ -516,3 +516,53 @@ def test_sampled_alignment_error_is_drawn_from_p0():
     np.testing.assert_allclose(start_error(exact), 0.0, atol=1e-9)
     with pytest.raises(ValueError, match="random stream"):
         build("navigator", "ins_ekf", params, "nav", ctx=ctx)
+
+
+def test_appearance_states_take_a_run_of_poor_fixes_as_one_shared_error():
+    """fix_appearance_sigma_m: three more states, seen by each fix with the gain g(q). A run of
+    poor fixes (quality 0.5, g = 1.95) that all err 1 m north, after good fixes at the truth:
+    with the states the filter moves less, claims more, and keeps what the run showed in b_app,
+    while the good fixes that follow (g = 0.016) bring the position back; without them it
+    follows the run and claims a few decimetres."""
+    from testbench.navigation.ins.error_model import IP, N_NO_WIND
+
+    q = np.array([1.0, 0, 0, 0])
+    w, f = static_imu(LAT0, H0, q)
+    true_ned = geodesy.geodetic_to_ned(LAT0, LON0, H0, ORIGIN.lat_rad, ORIGIN.lon_rad, ORIGIN.alt_m)
+    out = {}
+    for sigma in (0.0, 0.4):
+        nav = _navigator(fix_error_sigma_m=0.1, fix_error_tau_s=60.0, fix_appearance_sigma_m=sigma, use_gnss=False)
+        nav.initialize(0.0, _estimate_from(LAT0, LON0, H0, np.zeros(3), q))
+        ekf = nav.ekf
+        assert ekf.n == N_NO_WIND + (3 if sigma else 0)
+        if sigma:
+            np.testing.assert_allclose(np.diag(nav.initial_covariance())[ekf.i_app], sigma**2)
+            assert nav.appearance_gain(0.6) == pytest.approx(1.0)
+            assert nav.appearance_gain(0.9) == pytest.approx(0.25**3)
+            assert nav.appearance_gain(0.0) == pytest.approx(3.0)  # capped
+        else:
+            assert ekf.i_app is None and nav.appearance_gain(0.2) == 0.0
+        rows = []
+        for k in range(1, 701):  # 35 s at 20 Hz, fixes at 2 Hz claiming 0.3 m per axis
+            nav.predict(ImuSample(k * 0.05, w, f))
+            t = k * 0.05
+            if k % 10 == 0:
+                poor = 10.0 < t <= 30.0
+                offset = np.array([1.0, 0.0, 0.0]) if poor else np.zeros(3)
+                nav.correct(PositionFix(t, true_ned + offset, 0.09 * np.eye(3), 0.5 if poor else 0.9))
+                est = nav.estimate()
+                err_n = float(est.pos_ned_m[0] - true_ned[0])
+                rows.append((t, err_n, math.sqrt(float(nav.ekf.P[IP, IP][0, 0]))))
+        out[sigma] = (np.array(rows), nav.ekf.b_app.copy())
+    (r0, _), (r1, b_app) = out[0.0], out[0.4]
+    at = lambda r, t: r[np.argmin(abs(r[:, 0] - t))]  # noqa: E731
+    # End of the poor run: without the states the filter sits on the run's 1 m and claims a few
+    # decimetres (a 3-sigma surprise); with them it is partly off and claims enough for that.
+    _, e0, s0 = at(r0, 30.0)
+    _, e1, s1 = at(r1, 30.0)
+    assert e0 > 0.8 and e0 / s0 > 3.0, (e0, s0)
+    assert e1 < 0.5 * e0 and e1 / s1 < 1.0, (e1, s1)
+    # The run's error is held as appearance error, and the good fixes after it bring the
+    # position back (they share it only by g = 0.016).
+    assert b_app[0] > 0.3, b_app
+    assert abs(at(r1, 35.0)[1]) < 0.5 * abs(at(r0, 35.0)[1]), (at(r1, 35.0), at(r0, 35.0))
