@@ -24,6 +24,10 @@ Error convention (truth = nominal (+) error):
   (w_N, w_E, 0) over the ground): what airspeed aiding measures the velocity against
   (a fixed wing's pitot and zero sideslip give its velocity through the air, v - w); a random
   walk, since the wind changes with place and height as the vehicle flies.
+- dap (3, optional, after all the others: ErrorStateEKF.i_app): error of the fixes' appearance
+  error b_app (origin NED m), which a fix of quality q shows as g(q) b_app (InsEkfParams.
+  fix_appearance_sigma_m); Gauss-Markov like dfx. Not in N_STATES: a filter carries it only
+  when asked, and its rows of F and Q are set by the filter.
 The nominal biases are subtracted from the raw IMU data: omega = omega_meas - b_g.
 
 Continuous error dynamics (phi-angle model, Titterton & Weston ch. 12 / Groves ch. 14, in

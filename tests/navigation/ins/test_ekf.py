@@ -566,3 +566,21 @@ def test_appearance_states_take_a_run_of_poor_fixes_as_one_shared_error():
     # position back (they share it only by g = 0.016).
     assert b_app[0] > 0.3, b_app
     assert abs(at(r1, 35.0)[1]) < 0.5 * abs(at(r0, 35.0)[1]), (at(r1, 35.0), at(r0, 35.0))
+
+
+def test_appearance_states_come_after_the_wind():
+    """With airspeed aiding the wind keeps its two states (IW) and the appearance states follow
+    them; an injected correction reaches each of its own."""
+    from testbench.navigation.ins.error_model import IW, N_STATES
+
+    nav = _navigator(fix_appearance_sigma_m=0.3, use_gnss=False, airspeed_aiding={})
+    ekf = nav.ekf
+    assert ekf.n == N_STATES + 3 and ekf.i_app == slice(N_STATES, N_STATES + 3)
+    nav.initialize(0.0, _estimate_from(LAT0, LON0, H0, np.zeros(3), np.array([1.0, 0, 0, 0])))
+    dx = np.zeros(ekf.n)
+    dx[IW] = [1.0, 2.0]
+    dx[ekf.i_app] = [0.1, 0.2, 0.3]
+    ekf.inject(dx)
+    np.testing.assert_allclose(ekf.wind_ne_mps, [1.0, 2.0])
+    np.testing.assert_allclose(ekf.b_app, [0.1, 0.2, 0.3])
+    assert nav.initial_covariance()[ekf.i_app, ekf.i_app] == pytest.approx(0.09 * np.eye(3))
