@@ -24,6 +24,7 @@ from testbench.core.messages import (
 from testbench.core.registry import register
 from testbench.core.rotations import quat_to_dcm, quat_to_euler
 from testbench.core.units import DEG_TO_RAD, STANDARD_GRAVITY_MPS2
+from testbench.navigation.fix_quality import appearance_gain
 from testbench.navigation.ins import measurements as meas
 from testbench.navigation.ins.consistency import error_state
 from testbench.navigation.ins.ekf import ErrorStateEKF
@@ -169,9 +170,7 @@ class InsEkfNavigator(Navigator):
         p = self.params
         if self.ekf.i_app is None:
             return 0.0
-        q = min(max(float(quality), 0.0), 1.0)
-        g = ((1.0 - q) / (1.0 - p.fix_appearance_ref_quality)) ** p.fix_appearance_exponent
-        return min(g, p.fix_appearance_max_gain)
+        return appearance_gain(quality, p.fix_appearance_ref_quality, p.fix_appearance_exponent, p.fix_appearance_max_gain)
 
     def predict(self, imu: ImuSample) -> None:
         self._require_init()

@@ -23,6 +23,7 @@ import pydantic
 from testbench.core.camera_geometry import CameraMount, PinholeCamera, camera_pose_ned
 from testbench.core.messages import NavEstimate, PositionFix
 from testbench.core.registry import ParamsModel
+from testbench.navigation.fix_quality import appearance_gain
 from testbench.navigation.ismn.area import NccMatcher
 from testbench.navigation.ismn.mapcache import MapWindowCache, quantise_gsd
 from testbench.navigation.ismn.geometry import estimate_pose, footprint_bounds, nadir_gsd_m, predict_search_window
@@ -151,8 +152,7 @@ class IsmnPipeline:
         p = self.p
         if p.appearance_sigma_m is None:
             return 0.0
-        q = min(max(quality, 0.0), 1.0)
-        return p.appearance_sigma_m * ((1.0 - q) / (1.0 - p.appearance_ref_quality)) ** p.appearance_exponent
+        return p.appearance_sigma_m * appearance_gain(quality, p.appearance_ref_quality, p.appearance_exponent)
 
     # -- the pipeline --------------------------------------------------------------------------
     def process(self, frame_image: np.ndarray, t_s: float, estimate: NavEstimate) -> tuple[PositionFix | None, IsmnDiagnostics]:
