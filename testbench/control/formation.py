@@ -272,30 +272,41 @@ class FormationLaw:
         return self._limit(v, dt)
 
     def _limit(self, v: np.ndarray, dt: float) -> np.ndarray:
-        """Speed and climb limits, then the slew limit (|dv| <= max_accel dt) from the last output."""
-        v = np.asarray(v, float).copy()
-        v[2] = float(np.clip(v[2], -self.p.max_climb_rate_mps, self.p.max_climb_rate_mps))
-        h = math.hypot(v[0], v[1])
-        if h > self.p.max_speed_mps:
-            v[:2] *= self.p.max_speed_mps / h
-        if self.v_out is not None and dt > 0:
-            dv = v - self.v_out
-            n = float(np.linalg.norm(dv))
-            lim = self.p.max_accel_mps2 * dt
-            if n > lim:
-                v = self.v_out + dv * (lim / n)
-        self.v_out = v
-        return v.copy()
+        self.v_out = limit_velocity(v, self.v_out, dt, self.p.max_speed_mps, self.p.max_climb_rate_mps, self.p.max_accel_mps2)
+        return self.v_out.copy()
 
     def status(self, t_s: float, pos: np.ndarray, airspeed_cmd: float = float("nan"), bank: float = float("nan"),
                error_ned_m: np.ndarray | None = None, n_seen: int | None = None) -> GuidanceStatus:
-        """GuidanceStatus: target_ned_m = the slot point this vehicle estimates (own position +
-        slot error), leg_index = number of neighbours used, on_leg = at least one."""
-        err = self.error_ned_m if error_ned_m is None else error_ned_m
-        n = self.n_seen if n_seen is None else n_seen
-        target = np.asarray(pos, float) + err
-        return GuidanceStatus(t_s=t_s, leg_index=n, on_leg=n > 0, alt_cmd_m=float(-target[2]),
-                              airspeed_cmd_mps=airspeed_cmd, target_ned_m=tuple(float(x) for x in target), bank_cmd_rad=bank)
+        return slot_status(t_s, pos, self.error_ned_m if error_ned_m is None else error_ned_m,
+                           self.n_seen if n_seen is None else n_seen, airspeed_cmd, bank)
+
+
+def limit_velocity(v, v_last: np.ndarray | None, dt: float, max_speed_mps: float, max_climb_rate_mps: float,
+                   max_accel_mps2: float) -> np.ndarray:
+    """A follower's velocity command (3,) NED m/s within its limits: climb rate, horizontal
+    speed, then the slew limit |v - v_last| <= max_accel dt from the last output (v_last None
+    or dt 0: no slew limit). Returns a new array."""
+    v = np.asarray(v, float).copy()
+    v[2] = float(np.clip(v[2], -max_climb_rate_mps, max_climb_rate_mps))
+    h = math.hypot(v[0], v[1])
+    if h > max_speed_mps:
+        v[:2] *= max_speed_mps / h
+    if v_last is not None and dt > 0:
+        dv = v - v_last
+        n = float(np.linalg.norm(dv))
+        lim = max_accel_mps2 * dt
+        if n > lim:
+            v = v_last + dv * (lim / n)
+    return v
+
+
+def slot_status(t_s: float, pos, error_ned_m, n_seen: int, airspeed_cmd: float = float("nan"),
+                bank: float = float("nan")) -> GuidanceStatus:
+    """A follower's GuidanceStatus: target_ned_m = the slot point this vehicle estimates (own
+    position + slot error), leg_index = number of neighbours used, on_leg = at least one."""
+    target = np.asarray(pos, float) + np.asarray(error_ned_m, float)
+    return GuidanceStatus(t_s=t_s, leg_index=n_seen, on_leg=n_seen > 0, alt_cmd_m=float(-target[2]),
+                          airspeed_cmd_mps=airspeed_cmd, target_ned_m=tuple(float(x) for x in target), bank_cmd_rad=bank)
 
 
 class _HoldMission:
@@ -314,7 +325,10 @@ class FormationFollower(MultirotorController):
     """Multirotor follower: FormationLaw velocity command through the multirotor cascade
     (its velocity, attitude and rate loops and mixer), nose on the formation course.
 
-    Params: FormationParams, plus max_tilt_deg (default: the sidecar's)."""
+    Params: FormationParams, plus max_tilt_deg (default: the sidecar's). A subclass flies
+    another law with the same interface by setting law_class (trail.ColumnFollower)."""
+
+    law_class = FormationLaw
 
     class Params(FormationParams):
         max_tilt_deg: float | None = pydantic.Field(default=None, gt=0.0, lt=60.0)
@@ -324,7 +338,7 @@ class FormationFollower(MultirotorController):
         base = MultirotorController.Params(max_speed_mps=params.max_speed_mps, max_climb_rate_mps=params.max_climb_rate_mps,
                                            max_tilt_deg=params.max_tilt_deg)
         super().__init__(base, ctx=ctx, mission=_HoldMission(), aircraft=aircraft)
-        self.law = FormationLaw(params, ctx.vehicle_id)
+        self.law = self.law_class(params, ctx.vehicle_id)
         self._v_cmd = np.zeros(3)
         self._fstatus = GuidanceStatus(t_s=0.0)
         self._fstatus_inputs: tuple | None = None
