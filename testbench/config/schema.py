@@ -8,7 +8,7 @@ Units are in key names: `_m`, `_s`, `_hz`, `_deg`, `_mps`.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Literal
 
 import pydantic
 from pydantic import Field, field_validator, model_validator
@@ -143,11 +143,17 @@ class Phases(pydantic.BaseModel):
 class Formation(pydantic.BaseModel):
     """The formation geometry, for scoring: each vehicle's slot (forward_m, right_m, down_m) in
     the formation frame (forward along the leader's course). Followers' controllers carry the
-    same slots in their own params (a YAML anchor avoids writing them twice)."""
+    same slots in their own params (a YAML anchor avoids writing them twice).
+
+    kind rigid: the slots turn with the leader's ground course (an arrowhead, a V);
+    column: a follower's place is on the leader's own path, its slot's forward difference
+    (arc length) behind the leader, offset by the slots' right/down difference (a column along
+    a corridor or a canyon, flown by column_follower controllers)."""
 
     model_config = _CFG
     leader: str
     slots: dict[str, tuple[float, float, float]]
+    kind: Literal["rigid", "column"] = "rigid"
 
     @model_validator(mode="after")
     def _leader_has_slot(self) -> "Formation":

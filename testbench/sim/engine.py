@@ -70,6 +70,7 @@ class Engine:
         self.by_id = {v.id: v for v in vehicles}
         self.formation = formation
         self._formation_course_rad: float | None = None  # scoring's leader course (held at low speed)
+        self._leader_trail = None  # scoring's leader path (column formations)
         self.world = world
         self.dt_s = 1.0 / physics_rate_hz
         self.n_ticks = int(round(duration_s * physics_rate_hz))
@@ -232,13 +233,16 @@ class Engine:
         return ref
 
     def _record_formation(self, t_s: float) -> None:
-        """Slot errors from TRUTH: each vehicle minus (leader + R(leader course) (slot - slot_leader)).
+        """Slot errors from TRUTH: each vehicle minus (leader + R(leader course) (slot - slot_leader));
+        for a column (formation.kind), each vehicle minus its place on the leader's true path
+        (trail.column_errors).
 
         The leader's course is its ground-track direction; below 1 m/s ground speed (hover,
         start-up) the track direction is noise, so the last course is held, starting from the
         leader's heading (the followers' controller does the same with its estimates).
         """
         from testbench.control.formation import formation_errors
+        from testbench.control.trail import Trail, column_errors
 
         f = self.formation
         leader = self.by_id[f.leader].dynamics.truth()
@@ -248,7 +252,18 @@ class Engine:
             self._formation_course_rad = float(leader.rpy_rad[2])
         course = self._formation_course_rad
         pos = {vid: self.by_id[vid].dynamics.truth().pos_ned_m for vid in f.slots}
-        for vid, err in formation_errors(pos, course, {k: tuple(s) for k, s in f.slots.items()}, f.leader).items():
+        slots = {k: tuple(s) for k, s in f.slots.items()}
+        if f.kind == "column":
+            # The leader's true path, started as a straight line behind it along its heading.
+            if self._leader_trail is None:
+                back_m = max(slots[f.leader][0] - s[0] for s in slots.values()) + 100.0
+                self._leader_trail = Trail(crumb_m=0.5, keep_m=back_m + 500.0)
+                self._leader_trail.seed(leader.pos_ned_m, float(leader.rpy_rad[2]), back_m)
+            self._leader_trail.extend(leader.pos_ned_m)
+            errors = column_errors(pos, self._leader_trail, slots, f.leader)
+        else:
+            errors = formation_errors(pos, course, slots, f.leader)
+        for vid, err in errors.items():
             self.recorder.event(
                 "formation", t_s=t_s, vehicle_id=vid,
                 slot_error_north_m=float(err[0]), slot_error_east_m=float(err[1]), slot_error_down_m=float(err[2]),
