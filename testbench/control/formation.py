@@ -154,7 +154,37 @@ class FormationParams(ParamsModel):
     ahead_only: bool = True
 
 
-class FormationLaw:
+class FollowerLaw:
+    """What the followers' laws share: the limits on the velocity command (params p with
+    max_speed_mps, max_climb_rate_mps, max_accel_mps2; the last output in v_out) and the
+    GuidanceStatus of the slot estimated (error_ned_m, n_seen)."""
+
+    p: Any
+    v_out: np.ndarray | None
+    error_ned_m: np.ndarray
+    n_seen: int
+
+    def _limit(self, v: np.ndarray, dt: float) -> np.ndarray:
+        self.v_out = limit_velocity(v, self.v_out, dt, self.p.max_speed_mps, self.p.max_climb_rate_mps, self.p.max_accel_mps2)
+        return self.v_out.copy()
+
+    def status(self, t_s: float, pos: np.ndarray, airspeed_cmd: float = float("nan"), bank: float = float("nan"),
+               error_ned_m: np.ndarray | None = None, n_seen: int | None = None) -> GuidanceStatus:
+        return slot_status(t_s, pos, self.error_ned_m if error_ned_m is None else error_ned_m,
+                           self.n_seen if n_seen is None else n_seen, airspeed_cmd, bank)
+
+
+def add_repulsion(v: np.ndarray, neighbours, margin_m: float, k_repulse: float) -> None:
+    """Collision avoidance, in place on v (3,) NED m/s: k_repulse (|r| - margin) r / |r| for
+    every neighbour estimate with |r| < margin_m (r its relative position, NED m): away from it."""
+    for en in neighbours:
+        r = np.asarray(en.pos_ned_m, float)
+        d = float(np.linalg.norm(r))
+        if 1e-6 < d < margin_m:
+            v += k_repulse * (d - margin_m) * r / d
+
+
+class FormationLaw(FollowerLaw):
     """The consensus slot law (module docstring), independent of the airframe."""
 
     def __init__(self, p: FormationParams, self_id: str):
@@ -264,21 +294,8 @@ class FormationLaw:
         self.error_ned_m = np.asarray(e, float)
         v_rot = np.array([-om * d_slot[1], om * d_slot[0], 0.0])  # omega z x d (z down: course rate > 0 turns right)
         v = v_lead + v_rot + p.k_slot * self.error_ned_m
-        for en in fresh:
-            r = np.asarray(en.pos_ned_m, float)
-            d = float(np.linalg.norm(r))
-            if 1e-6 < d < p.margin_m:
-                v += p.k_repulse * (d - p.margin_m) * r / d  # away from the neighbour
+        add_repulsion(v, fresh, p.margin_m, p.k_repulse)
         return self._limit(v, dt)
-
-    def _limit(self, v: np.ndarray, dt: float) -> np.ndarray:
-        self.v_out = limit_velocity(v, self.v_out, dt, self.p.max_speed_mps, self.p.max_climb_rate_mps, self.p.max_accel_mps2)
-        return self.v_out.copy()
-
-    def status(self, t_s: float, pos: np.ndarray, airspeed_cmd: float = float("nan"), bank: float = float("nan"),
-               error_ned_m: np.ndarray | None = None, n_seen: int | None = None) -> GuidanceStatus:
-        return slot_status(t_s, pos, self.error_ned_m if error_ned_m is None else error_ned_m,
-                           self.n_seen if n_seen is None else n_seen, airspeed_cmd, bank)
 
 
 def limit_velocity(v, v_last: np.ndarray | None, dt: float, max_speed_mps: float, max_climb_rate_mps: float,

@@ -3,8 +3,8 @@ behind it along that path (a convoy, a column along a corridor or a canyon).
 
 A rigid formation turns its slots with the leader's course, so in a bend a vehicle 240 m back
 is put 240 m behind the leader along the leader's CURRENT course: across the bend, into the
-wall of a meandering canyon (swarm_canyon_nlos: the back of the column came within 10 m of the
-terrain, and a follower of a neighbour's layout flew into it). A column follower instead keeps
+wall of a meandering canyon (swarm_canyon_nlos with rigid slots: the back of the column came
+within 10 m of the terrain). A column follower instead keeps
 a trail of where it has seen its predecessor and flies the point of that trail `spacing` metres
 (arc length) behind the predecessor's latest position. When the predecessor is hidden (behind
 a bend's wall, exactly where a column needs it most) the follower flies the trail of the next
@@ -28,9 +28,9 @@ from typing import Any
 import numpy as np
 import pydantic
 
-from testbench.control.formation import FormationFollower, limit_velocity, slot_status
+from testbench.control.formation import FollowerLaw, FormationFollower, add_repulsion
 from testbench.core.errors import InputError
-from testbench.core.messages import GuidanceStatus, NavEstimate
+from testbench.core.messages import NavEstimate
 from testbench.core.registry import ParamsModel, register
 
 
@@ -120,8 +120,8 @@ def column_errors(pos_ned_by_id: dict[str, np.ndarray], leader_trail: Trail, slo
 class ColumnParams(ParamsModel):
     """slots: id -> (forward_m, right_m, down_m), as for the rigid formation; the forward
     difference to the vehicle followed is the spacing along the path. follow_id: the only
-    vehicle whose path we fly (default: the nearest vehicle ahead in sight, by slot); k_slot (1/s): gain
-    on the error from our point of the trail; speed_tau_s: low-pass of the followed vehicle's
+    vehicle whose path we fly (default: the nearest vehicle ahead in sight, by slot); k_slot
+    (1/s): gain on the error from our point of the trail; speed_tau_s: low-pass of the followed vehicle's
     estimated speed (the feed-forward along the trail); crumb_m: trail point spacing;
     max_age_s, max_sigma_m: estimates older or more uncertain than this are not used (nor
     put on the trail); margin_m, k_repulse: collision avoidance against every fresh neighbour;
@@ -161,7 +161,7 @@ class _PeerTrail:
         self.last_seen: tuple[float, np.ndarray, np.ndarray] | None = None  # (t_s, pos NED m, vel NED m/s)
 
 
-class TrailLaw:
+class TrailLaw(FollowerLaw):
     """The column law (module docstring); the same interface as formation.FormationLaw:
     velocity_command(t, est, table) -> v_cmd (3,) NED m/s; course_lead (rad) for the nose;
     error_ned_m (3,): our point of the trail minus our position; n_seen: 1 while a vehicle
@@ -257,11 +257,7 @@ class TrailLaw:
         target = point + column_offset_ned(course, p.slots[self.self_id], p.slots[self.active])
         self.error_ned_m = target - pos
         v = self.speed_ff_mps * np.array([math.cos(course), math.sin(course), 0.0]) + p.k_slot * self.error_ned_m
-        for en in fresh.values():
-            r = np.asarray(en.pos_ned_m, float)
-            d = float(np.linalg.norm(r))
-            if 1e-6 < d < p.margin_m:
-                v += p.k_repulse * (d - p.margin_m) * r / d  # away from the neighbour
+        add_repulsion(v, fresh.values(), p.margin_m, p.k_repulse)
         return self._limit(v, dt)
 
     def _extend_trail(self, peer: _PeerTrail, t_s: float, pos: np.ndarray, p_k: np.ndarray, v_k: np.ndarray,
@@ -287,15 +283,6 @@ class TrailLaw:
                     tr.extend(h00 * p0 + h10 * gap_s * v0 + h01 * p_k + h11 * gap_s * v_k)
         tr.extend(p_k)
         peer.last_seen = (t_s, p_k, v_k)
-
-    def _limit(self, v: np.ndarray, dt: float) -> np.ndarray:
-        self.v_out = limit_velocity(v, self.v_out, dt, self.p.max_speed_mps, self.p.max_climb_rate_mps, self.p.max_accel_mps2)
-        return self.v_out.copy()
-
-    def status(self, t_s: float, pos: np.ndarray, airspeed_cmd: float = float("nan"), bank: float = float("nan"),
-               error_ned_m: np.ndarray | None = None, n_seen: int | None = None) -> GuidanceStatus:
-        return slot_status(t_s, pos, self.error_ned_m if error_ned_m is None else error_ned_m,
-                           self.n_seen if n_seen is None else n_seen, airspeed_cmd, bank)
 
 
 @register("controller", "column_follower")
