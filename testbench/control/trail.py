@@ -128,7 +128,6 @@ class ColumnParams(ParamsModel):
     max_speed_mps, max_climb_rate_mps, max_accel_mps2 as for the rigid formation."""
 
     slots: dict[str, tuple[float, float, float]]
-    leader_id: str | None = None
     follow_id: str | None = None
     k_slot: float = pydantic.Field(0.4, gt=0)
     speed_tau_s: float = pydantic.Field(2.0, ge=0)
@@ -142,14 +141,19 @@ class ColumnParams(ParamsModel):
     max_accel_mps2: float = pydantic.Field(1.5, gt=0)
 
 
-def followed_vehicle(slots: dict[str, Any], self_id: str) -> str:
-    """The vehicle whose slot is nearest ahead of self_id's (the smallest forward lead);
+def vehicles_ahead(slots: dict[str, Any], self_id: str) -> list[str]:
+    """The vehicles whose slots lie ahead of self_id's, nearest first (smallest forward lead);
     InputError if none is ahead."""
     me = float(slots[self_id][0])
-    ahead = [(float(s[0]) - me, k) for k, s in slots.items() if k != self_id and float(s[0]) > me + 1e-6]
+    ahead = sorted((float(s[0]) - me, k) for k, s in slots.items() if k != self_id and float(s[0]) > me + 1e-6)
     if not ahead:
         raise InputError(f"control.params.slots: no slot ahead of {self_id!r} to follow in a column")
-    return min(ahead)[1]
+    return [k for _, k in ahead]
+
+
+def followed_vehicle(slots: dict[str, Any], self_id: str) -> str:
+    """The vehicle whose slot is nearest ahead of self_id's; InputError if none is ahead."""
+    return vehicles_ahead(slots, self_id)[0]
 
 
 class _PeerTrail:
@@ -186,9 +190,7 @@ class TrailLaw(FollowerLaw):
                                  f"{self_id!r}'s (forward {p.slots[p.follow_id][0]} vs {me})")
             self.ahead_ids = [p.follow_id]
         else:
-            followed_vehicle(p.slots, self_id)  # InputError when nobody is ahead
-            self.ahead_ids = sorted((k for k, s in p.slots.items() if k != self_id and float(s[0]) > me),
-                                    key=lambda k: float(p.slots[k][0]))
+            self.ahead_ids = vehicles_ahead(p.slots, self_id)
         self.follow_id = self.ahead_ids[0]
         self.spacing_by_id = {k: float(p.slots[k][0]) - me for k in self.ahead_ids}
         keep_m = max(4.0 * max(self.spacing_by_id.values()), 500.0)

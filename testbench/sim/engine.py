@@ -246,11 +246,6 @@ class Engine:
 
         f = self.formation
         leader = self.by_id[f.leader].dynamics.truth()
-        if math.hypot(leader.vel_ned_mps[0], leader.vel_ned_mps[1]) >= _FORMATION_COURSE_MIN_SPEED_MPS:
-            self._formation_course_rad = math.atan2(leader.vel_ned_mps[1], leader.vel_ned_mps[0])
-        elif self._formation_course_rad is None:
-            self._formation_course_rad = float(leader.rpy_rad[2])
-        course = self._formation_course_rad
         pos = {vid: self.by_id[vid].dynamics.truth().pos_ned_m for vid in f.slots}
         slots = {k: tuple(s) for k, s in f.slots.items()}
         if f.kind == "column":
@@ -262,7 +257,11 @@ class Engine:
             self._leader_trail.extend(leader.pos_ned_m)
             errors = column_errors(pos, self._leader_trail, slots, f.leader)
         else:
-            errors = formation_errors(pos, course, slots, f.leader)
+            if math.hypot(leader.vel_ned_mps[0], leader.vel_ned_mps[1]) >= _FORMATION_COURSE_MIN_SPEED_MPS:
+                self._formation_course_rad = math.atan2(leader.vel_ned_mps[1], leader.vel_ned_mps[0])
+            elif self._formation_course_rad is None:
+                self._formation_course_rad = float(leader.rpy_rad[2])
+            errors = formation_errors(pos, self._formation_course_rad, slots, f.leader)
         for vid, err in errors.items():
             self.recorder.event(
                 "formation", t_s=t_s, vehicle_id=vid,

@@ -111,7 +111,7 @@ def _fly_bend(law, me="b", visible=lambda t: {"a", "b"}, t_end=120.0, dt=0.1, pr
 
 
 def test_column_follower_flies_the_path_around_a_bend_where_a_rigid_slot_cuts_it():
-    column = _fly_bend(TrailLaw(ColumnParams(slots=SLOTS, leader_id="a", margin_m=15.0), "b"))
+    column = _fly_bend(TrailLaw(ColumnParams(slots=SLOTS, margin_m=15.0), "b"))
     rigid = _fly_bend(FormationLaw(FormationParams(slots=SLOTS, leader_id="a", margin_m=15.0), "b"))
     print(f"off the path: column max {column.max():.2f} m, rigid max {rigid.max():.2f} m")
     assert column.max() < 2.0, column.max()
@@ -120,7 +120,7 @@ def test_column_follower_flies_the_path_around_a_bend_where_a_rigid_slot_cuts_it
 
 def test_column_follower_goes_on_along_the_trail_while_the_predecessor_is_hidden():
     """Hidden for 12 s in the bend (40-52 s): the follower flies on along the trail it has."""
-    law = TrailLaw(ColumnParams(slots=SLOTS, leader_id="a", margin_m=15.0), "b")
+    law = TrailLaw(ColumnParams(slots=SLOTS, margin_m=15.0), "b")
     off = _fly_bend(law, visible=lambda t: set() if 40.0 <= t < 52.0 else {"a"})
     assert off.max() < 1.0, off.max()
 
@@ -128,7 +128,7 @@ def test_column_follower_goes_on_along_the_trail_while_the_predecessor_is_hidden
 def test_column_follower_takes_the_next_vehicle_ahead_while_its_predecessor_is_hidden():
     """c follows b; b hidden for 30 s in the bend (35-65 s) while a, two places ahead, is seen:
     c flies a's trail 120 m behind a and stays on the path."""
-    law = TrailLaw(ColumnParams(slots=SLOTS, leader_id="a", margin_m=15.0), "c")
+    law = TrailLaw(ColumnParams(slots=SLOTS, margin_m=15.0), "c")
     seen = []
 
     def probe(t, law, pos):
