@@ -74,6 +74,9 @@ class RelnavAid(NavigationAid):
         self._target_b_m = np.asarray(params.target_offset_b_m, float)
         self._target_by_chip_b_m = (None if params.target_offset_by_chip_b_m is None
                                     else np.asarray(params.target_offset_by_chip_b_m, float))  # (2, 3)
+        self._target_data_b_m = np.asarray(params.target_offset_data_b_m if params.target_offset_data_b_m is not None
+                                           else params.target_offset_b_m, float)
+        self._resolve_mixtures = params.tracker.mixture_action == "resolve"
         self._centre_reference = getattr(self.detector, "centre_reference", "vehicle_centre")
         if self._centre_reference == "vehicle_centre" and np.any(np.asarray(offsets, float)):
             # (A leftover LED offset with a CG detector biases every bearing: the oracle runs
@@ -103,7 +106,8 @@ class RelnavAid(NavigationAid):
         self.counters = {"frames": 0, "detections": 0, "id_checks": 0, "id_wrong": 0, "id_ambiguous": 0, "bearings_used": 0, "predicted_assoc": 0, "restarts_refused": 0,
                          "filter_resets": 0, "bearings_occluded": 0, "starts_off_layout": 0,
                          "bearings_closer_to_other": 0, "bearings_from_part": 0,
-                         "detections_oversize": 0}
+                         "detections_oversize": 0, "mixture_bearings": 0, "mixture_frames_unresolved": 0,
+                         "mixture_frames_unconfirmed": 0}
         self.book = NeighbourBook(
             self.self_id,
             StartRules(params.reset_after_rejects, params.reset_bearing_after_s, params.tracker.id_confidence,
@@ -167,15 +171,13 @@ class RelnavAid(NavigationAid):
         decoded = self._decoded_in_view()
         for tr in sorted((x for x in updated if x.confirmed), key=lambda x: -x.id_confidence):
             det = tr.last_detection
+            if self._resolve_mixtures and tr.mixture is not None:
+                self._resolved(tr, det, fi, truths, cam, R_nb, R_nc, lever_b, focal, att_sigma, est, claimed, diag, name)
+                continue
             peer = self.ids[tr.id_index] if tr.id_index is not None else None
             truth = id_truth(det, truths, self._centre_reference, self._id_tie_px) if truths else None  # scoring only, never fused
-            if truth is not None and peer is not None and truth.best is not None:
-                score = truth.score(peer)
-                self.counters["id_checks"] += 1
-                self.counters["id_wrong"] += int(score == 0.0)
-                self.counters["id_ambiguous"] += int(truth.ambiguous)
-                diag.id_rows.append(dict(t_s=t, camera=name, track_id=tr.track_id, decoded_id=peer, truth_id=truth.best,
-                                         id_correct=score, id_ambiguous=float(truth.ambiguous), id_confidence=tr.id_confidence))
+            if peer is not None:
+                self._score_claim(diag, name, tr.track_id, peer, truth, tr.id_confidence)
             chip = tr.decoder.chip_at(fi) if by_chip is not None else None
             off_n = c_off if chip is None else R_nb @ (lever_b - by_chip[chip])
             bearing = Bearing(t, undistort_normalized(cam, [det.centre_px])[0], R_nc, off_n, focal, att_sigma)
@@ -200,6 +202,59 @@ class RelnavAid(NavigationAid):
             diag.id_correct = {p: self.bearing_id_ok.get(p, nan2)[0] for p in diag.table}
             diag.id_ambiguous = {p: self.bearing_id_ok.get(p, nan2)[1] for p in diag.table}
         return diag
+
+    def _resolved(self, tr: Any, det: Any, fi: int, truths: list, cam: Any, R_nb: np.ndarray, R_nc: np.ndarray,
+                  lever_b: np.ndarray, focal: float, att_sigma: float, est: NavEstimate, claimed: set,
+                  diag: RelnavDiagnostics, name: str) -> None:
+        """A track whose blob merges two vehicles j, k (Track.mixture, tracker mixture_action
+        "resolve"). In LED frame fi the code lights the data LEDs of one of them only, of both,
+        or of neither. Where it lights one, the blob's data-LED pixels are that vehicle's alone,
+        so their centroid (Detection.data_centre_px, with target_offset_data_b_m) is its
+        bearing: fused into its running estimate when that estimate's gate takes it, and then
+        scored as an ID claim of it. Otherwise the frame gives nothing, and no estimate is
+        started from it.
+
+        Why: on the arrowhead's lattice lines two vehicles 100 m apart stand 3-8 px from each
+        other and their LEDs join one blob, whose blink decodes as the brighter while its centre
+        lies between them. Off in the shipped scenarios: docs/measurements.md ("Chip-resolved
+        bearings of merged blobs")."""
+        j, k = tr.mixture
+        chips = tr.decoder.book[:, fi % led_code.CODE_LENGTH]
+        if chips[j] == chips[k] or det.data_centre_px is None:
+            self.counters["mixture_frames_unresolved"] += 1
+            return
+        peer = self.ids[j if chips[j] else k]
+        det = replace(det, centre_px=det.data_centre_px)
+        off_n = R_nb @ (lever_b - self._target_data_b_m)
+        bearing = Bearing(diag.t_s, undistort_normalized(cam, [det.centre_px])[0], R_nc, off_n, focal, att_sigma)
+        f = self.filters.get(peer)
+        if f is None or peer in claimed or not self.assoc.gates(f, bearing):
+            # The pair's fit is a model of two blinks: a blob of three vehicles on one line
+            # fits a wrong pair, whose chip then names a vehicle elsewhere in the image. (Starting
+            # an estimate from such a bearing, as an identified track would, was tried: relnav
+            # mean 0.166 / 0.182 -> 0.183 / 0.200 m, seeds 1 / 2, the formation no better.)
+            self.counters["mixture_frames_unconfirmed"] += 1
+            return
+        claimed.add(peer)
+        truth = id_truth(det, truths, self._centre_reference, self._id_tie_px) if truths else None  # scoring only
+        self._score_claim(diag, name, tr.track_id, peer, truth, float("nan"))
+        self.counters["mixture_bearings"] += 1
+        # No ambiguity test: the other vehicle of the blob stands a few pixels away, inside the
+        # gate of its estimate, and the chips already say whose LEDs these are.
+        self._update_with(peer, f, bearing, truth, est, check_ambiguity=False)
+
+    def _score_claim(self, diag: RelnavDiagnostics, camera: str, track_id: int, peer: str, truth: Any,
+                     confidence: float) -> None:
+        """Score a track's claim that its detection is `peer` against the frame's IdTruth
+        (scoring only: counters and a row of table relnav_id; nothing when undecidable)."""
+        if truth is None or truth.best is None:
+            return
+        score = truth.score(peer)
+        self.counters["id_checks"] += 1
+        self.counters["id_wrong"] += int(score == 0.0)
+        self.counters["id_ambiguous"] += int(truth.ambiguous)
+        diag.id_rows.append(dict(t_s=diag.t_s, camera=camera, track_id=track_id, decoded_id=peer, truth_id=truth.best,
+                                 id_correct=score, id_ambiguous=float(truth.ambiguous), id_confidence=confidence))
 
     def _decoded_in_view(self) -> set[str]:
         """The neighbours that a confirmed track of some camera carries as its decoded ID (and,
@@ -248,9 +303,14 @@ class RelnavAid(NavigationAid):
         where the book allows, unless another estimate claims it (association.ambiguity);
         truth: the frame's IdTruth of the detection it came from (scoring only)."""
         f = self.book.filter_for_bearing(peer, tr, bearing, cam, mount, R_nb, est)
-        if f is None:
-            return
-        why = self.assoc.ambiguity(peer, self.filters, bearing) if self.params.skip_ambiguous else None
+        if f is not None:
+            self._update_with(peer, f, bearing, truth, est)
+
+    def _update_with(self, peer: str, f: Any, bearing: Bearing, truth: Any, est: NavEstimate,
+                     check_ambiguity: bool = True) -> None:
+        """Fuse `bearing` into peer's running estimate f, unless (check_ambiguity) another
+        estimate claims it (association.ambiguity); truth as in _fuse."""
+        why = self.assoc.ambiguity(peer, self.filters, bearing) if self.params.skip_ambiguous and check_ambiguity else None
         if why is not None:
             self.counters[f"bearings_{why}"] += 1
             return

@@ -123,7 +123,7 @@ class LedDetector(Detector):
         out = []
         for members in groups:
             comp = [keep[i] for i in members]
-            (x0, y0, x1, y1), (cu, cv_), level, n_px = self._weighted_leds(comp, labels, stats, hsv, (bx, by))
+            (x0, y0, x1, y1), (cu, cv_), level, n_px, data_c = self._weighted_leds(comp, labels, stats, hsv, (bx, by))
             parts = np.zeros((0, 2))
             if p.anchor_hue_deg is not None and not split_groups:
                 subs = self._split_by_anchor(members, keep, labels, stats, cents, hsv, (bx, by))
@@ -135,14 +135,16 @@ class LedDetector(Detector):
             box = self._body_box(grey, mask, (x0, y0, x1, y1))
             leds = np.array([cents[c] for c in comp], float).reshape(-1, 2)
             score = float(1.0 - np.exp(-float(n_px) / 3.0))
-            out.append(Detection(box, (cu, cv_), score, "vehicle", leds, None, level, parts))
+            out.append(Detection(box, (cu, cv_), score, "vehicle", leds, None, level, parts, data_c))
         return out
 
     def _weighted_leds(self, comp: list[int], labels: np.ndarray, stats: np.ndarray, hsv: np.ndarray,
-                       origin: tuple[int, int]) -> tuple[tuple[int, int, int, int], tuple[float, float], float, int]:
+                       origin: tuple[int, int]) -> tuple[tuple[int, int, int, int], tuple[float, float], float, int,
+                                                         tuple[float, float] | None]:
         """Of the LED components `comp` (labels of the lit bounding box at `origin`): their box
         (x0, y0, x1, y1) px, x1/y1 exclusive; their brightness-weighted centroid (u, v) px; the
-        blink level (class docstring, step 4); their pixel count."""
+        blink level (class docstring, step 4); their pixel count; with data_hue_deg, the
+        brightness-weighted centroid (u, v) px of the data LEDs' pixels alone (None without any)."""
         p = self.params
         bx, by = origin
         x0 = min(stats[c, cv2.CC_STAT_LEFT] for c in comp)
@@ -153,11 +155,15 @@ class LedDetector(Detector):
         w = hsv[y0:y1, x0:x1, 2].astype(np.float64) / 255.0 * gm
         tot = float(w.sum())
         level = tot
-        if p.data_hue_deg is not None:
-            dh = _hue_distance_deg(hsv[y0:y1, x0:x1, 0], p.data_hue_deg)
-            level = 0.05 + float((w * (dh <= p.data_hue_tol_deg)).sum())
         vv, uu = np.mgrid[y0:y1, x0:x1]
-        return (x0, y0, x1, y1), (float((w * uu).sum() / tot), float((w * vv).sum() / tot)), level, int(gm.sum())
+        data_c = None
+        if p.data_hue_deg is not None:
+            wd = w * (_hue_distance_deg(hsv[y0:y1, x0:x1, 0], p.data_hue_deg) <= p.data_hue_tol_deg)
+            tot_d = float(wd.sum())
+            level = 0.05 + tot_d
+            if tot_d > 0.0:
+                data_c = (float((wd * uu).sum() / tot_d), float((wd * vv).sum() / tot_d))
+        return (x0, y0, x1, y1), (float((w * uu).sum() / tot), float((w * vv).sum() / tot)), level, int(gm.sum()), data_c
 
     def _split_by_anchor(self, members: list[int], keep: list[int], labels: np.ndarray, stats: np.ndarray,
                          cents: np.ndarray, hsv: np.ndarray, origin: tuple[int, int]) -> list[list[int]]:

@@ -7,6 +7,8 @@ or the swarm scenarios' values, is in RelnavParams' docstring.
 
 from __future__ import annotations
 
+from typing import Literal
+
 import pydantic
 
 from testbench.core import led_code
@@ -61,6 +63,7 @@ class TrackerParams(ParamsModel):
     id_keep_prob: float = pydantic.Field(0.5, ge=0, lt=1)
     mixture_min_ratio: float | None = pydantic.Field(None, gt=0, le=1)
     mixture_min_f: float = pydantic.Field(2.0, ge=0)
+    mixture_action: Literal["drop", "resolve"] = "drop"
 
 
 class RelnavParams(ParamsModel):
@@ -73,7 +76,10 @@ class RelnavParams(ParamsModel):
     target_offset_by_chip_b_m (the same for a frame in which the track showed blink chip 0 and
     chip 1, when the detector's centre moves with the chip: the LED centroid of the quad is the
     top anchor alone, 0.22 m above the CG, or all five LEDs, 0.02 m; used once the track's
-    decoder reads the frame's chip, target_offset_b_m before), led_rate_hz (default: the
+    decoder reads the frame's chip, target_offset_b_m before), target_offset_data_b_m (the same
+    for the centroid of the data LEDs alone, which a merged blob's chip-resolved bearing takes:
+    tracker.mixture_action "resolve"; the quad's four arm LEDs, 0.03 m above the CG; default
+    target_offset_b_m), led_rate_hz (default: the
     first camera's rate), range_max_age_s (a range this recent may start a filter with a
     bearing), stale_after_s (a neighbour with no bearing fused for this long is forgotten),
     report_max_age_s (the NeighbourTable holds only neighbours with both a bearing and a range
@@ -138,6 +144,7 @@ class RelnavParams(ParamsModel):
     uwb_lever_arm_b_m: tuple[float, float, float] | None = None
     target_offset_b_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
     target_offset_by_chip_b_m: tuple[tuple[float, float, float], tuple[float, float, float]] | None = None
+    target_offset_data_b_m: tuple[float, float, float] | None = None
     led_rate_hz: float | None = pydantic.Field(None, gt=0)
     range_max_age_s: float = pydantic.Field(0.5, gt=0)
     stale_after_s: float = pydantic.Field(5.0, gt=0)

@@ -15,7 +15,8 @@ dropped (`counters["id_revoked"]`); an ID whose posterior over the whole window 
 chips decode again. A track's id_confidence is the current posterior of the ID it carries.
 With `mixture_min_ratio` set, a track whose window of blink levels is the sum of two code words
 (two vehicles' blobs merged on one line of sight: idcode module docstring) loses its ID and the
-chips seen so far, and decodes afresh from the chips that follow (`Track.mixture` holds the
+chips seen so far (`mixture_action` "drop"; "resolve" keeps them, see TrackerSettings), and
+decodes afresh from the chips that follow (`Track.mixture` holds the
 pair until then; counters `id_mixture_frames`, and `id_mixture_dropped` when it took an ID
 away): the blink of such a blob decodes, confidently, as one vehicle while its centre lies on
 the other, and the track may leave with either when they part.
@@ -65,7 +66,10 @@ class TrackerSettings:
     took the paper arrowhead's track-frame IDs from 0.989-0.991 to 0.9987, but its start-up
     formation, sensitive to the set of neighbours each follower estimates, came out worse in
     two of three realisations, so the shipped scenarios leave it off: docs/measurements.md,
-    "What the wrong track IDs are")."""
+    "What the wrong track IDs are"); mixture_action: what such a track does: "drop" its ID
+    and chips and decode afresh, or "resolve": keep its ID and chips, claim and change no ID
+    while the window is a mixture, and hold the pair in Track.mixture, whose frames the
+    relative-navigation aid attributes by the pair's chips (RelnavAid._resolved)."""
 
     sigma_px_min: float = 0.7
     pos_sigma_frac: float = 0.1
@@ -81,6 +85,7 @@ class TrackerSettings:
     id_keep_prob: float = 0.5
     mixture_min_ratio: float | None = None
     mixture_min_f: float = 2.0
+    mixture_action: str = "drop"
 
 
 # Identity blocks reused every prediction (read-only).
@@ -269,11 +274,13 @@ class Tracker:
                 # Its chips no longer single it out (a blob merged with another vehicle's).
                 self.counters["id_lost"] += 1
                 tr.id_index, tr.id_confidence = None, 0.0
+        if self.s.mixture_min_ratio is not None and self.s.mixture_action == "resolve" and self._resolved_as_mixture(tr):
+            return
         if post is None:
             return
         k = int(np.argmax(post))
         conf = float(post[k])
-        if self.s.mixture_min_ratio is not None and self._withheld_as_mixture(tr, conf):
+        if self.s.mixture_min_ratio is not None and self.s.mixture_action == "drop" and self._withheld_as_mixture(tr, conf):
             return
         if tr.id_index is not None:
             tr.id_confidence = float(post[tr.id_index])
@@ -286,6 +293,19 @@ class Tracker:
         elif tr.id_index != k:
             self.counters["id_changes"] += 1
         tr.id_index, tr.id_confidence = k, conf
+
+    def _resolved_as_mixture(self, tr: Track) -> bool:
+        """Whether `tr`'s window of levels mixes two code words (mixture_action "resolve"):
+        then Track.mixture holds the pair, the track keeps its ID and chips but neither claims
+        nor changes an ID while it does, and the caller attributes each frame to the one
+        vehicle of the pair whose chip is on (RelnavAid)."""
+        mix = tr.decoder.mixture(min_obs=CODE_LENGTH)
+        if mix is None or not mix.is_mixture(self.s.mixture_min_ratio, self.s.mixture_min_f):
+            tr.mixture = None
+            return False
+        self.counters["id_mixture_frames"] += 1
+        tr.mixture = mix.pair
+        return True
 
     def _withheld_as_mixture(self, tr: Track, conf: float) -> bool:
         """Whether `tr`, whose best word has posterior `conf`, must carry no ID after this

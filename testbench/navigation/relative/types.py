@@ -28,6 +28,9 @@ class Detection:
     this one detection (the LED centroid of each anchor LED's share of the blobs), empty when
     it saw one vehicle or cannot tell: the detection stays one for tracking and blink
     decoding, and the caller may take the bearing of the part its estimate predicts.
+    data_centre_px: (u, v) full-frame pixels of the brightness-weighted centroid of the data
+    LEDs' pixels alone (the LED detector with data_hue_deg), None otherwise or when none is lit:
+    in a blob of two vehicles of which the code lights one's data LEDs only, it is that one's.
     """
 
     bbox_px: tuple[float, float, float, float]
@@ -38,6 +41,7 @@ class Detection:
     led_on: tuple[bool, ...] | None = None
     led_level: float | None = None
     parts_px: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)), repr=False)
+    data_centre_px: tuple[float, float] | None = None
 
     @property
     def width_px(self) -> float:
@@ -52,7 +56,8 @@ class Detection:
         u0, v0, u1, v1 = self.bbox_px
         return Detection((u0 + du, v0 + dv, u1 + du, v1 + dv), (self.centre_px[0] + du, self.centre_px[1] + dv),
                          self.score, self.label, np.asarray(self.led_px, float).reshape(-1, 2) + [du, dv],
-                         self.led_on, self.led_level, np.asarray(self.parts_px, float).reshape(-1, 2) + [du, dv])
+                         self.led_on, self.led_level, np.asarray(self.parts_px, float).reshape(-1, 2) + [du, dv],
+                         None if self.data_centre_px is None else (self.data_centre_px[0] + du, self.data_centre_px[1] + dv))
 
 
 @dataclass(frozen=True)

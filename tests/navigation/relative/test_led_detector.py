@@ -68,6 +68,28 @@ def test_the_data_hue_level_counts_only_the_data_leds():
     assert a.led_level < 0.1 < 1.0 < b.led_level
 
 
+def test_the_data_leds_centroid_is_reported_apart_from_the_anchor():
+    """With data_hue_deg the detection also gives the centroid of its data LEDs alone (the red
+    ones), which a merged blob's chip-resolved bearing uses; None with only the anchor lit; it
+    moves with the detection into full-frame pixels."""
+    img = _frame()
+    _led(img, 400.0, 296.0, colour=(40, 255, 40))  # the anchor, above
+    data = [(394.0, 304.0), (406.0, 304.0)]
+    for u, v in data:
+        _led(img, u, v, colour=(255, 40, 40))
+    (det,) = LedDetector(LedDetector.Params(data_hue_deg=0.0)).detect(img)
+    assert np.hypot(*(np.asarray(det.data_centre_px) - np.mean(data, axis=0))) < 0.3
+    assert abs(det.centre_px[1] - 304.0) > 1.0  # the whole group's centroid is pulled up by the anchor
+    moved = det.shifted(100.0, 50.0)
+    assert moved.data_centre_px == pytest.approx((det.data_centre_px[0] + 100.0, det.data_centre_px[1] + 50.0))
+    anchor_only = _frame()
+    _led(anchor_only, 400.0, 296.0, colour=(40, 255, 40))
+    (a,) = LedDetector(LedDetector.Params(data_hue_deg=0.0)).detect(anchor_only)
+    assert a.data_centre_px is None
+    (plain,) = LedDetector().detect(img)
+    assert plain.data_centre_px is None  # no data hue configured: no such centroid
+
+
 def test_a_group_with_two_anchors_is_two_vehicles():
     """Two vehicles 10 px apart (closer than group_px): one detection between them without
     anchor_hue_deg; with it, one detection at each vehicle's LEDs, each with its own blobs."""

@@ -240,6 +240,61 @@ def test_the_bearing_of_a_merged_detection_is_the_part_the_estimate_predicts():
     assert aid._on_part("near", merged, single, cam) == (merged, single)
 
 
+def test_a_merged_blob_gives_a_bearing_to_the_vehicle_whose_data_leds_alone_are_lit():
+    """A track on the blob of two neighbours on nearly one line of sight (near at 100 m, far
+    at 200 m, 7 px apart), its levels a mixture of their blinks (Track.mixture): in an LED
+    frame whose code lights only the far one's data LEDs, the blob's data-LED centroid is the
+    far one's bearing, fused into its estimate (past the near one's gate, which the ambiguity
+    test would refuse it for) and claimed as its ID; where the code lights both, or the
+    centroid lies where the named vehicle's estimate does not put it (a blob of three vehicles
+    fits a wrong pair), nothing is fused or claimed."""
+    from testbench.core import led_code
+    from testbench.navigation.relative.diagnostics import RelnavDiagnostics
+    from testbench.navigation.relative.idcode import IdDecoder
+    from testbench.navigation.relative.tracking import Track
+    from testbench.navigation.relative.types import Detection
+
+    offs = {"near": (100.0, 0.0, 0.0), "far": (200.0, 1.5, 0.0)}
+    aid, R_nc, f_px = _aid_with_filters(offs)
+    cam, _ = aid.cams["front"]
+    j, k = aid.ids.index("near"), aid.ids.index("far")
+    px = {n: (cam.cx + cam.fx * _m(o)[0], cam.cy + cam.fy * _m(o)[1]) for n, o in offs.items()}
+    centre = tuple(np.mean([px["near"], px["far"]], axis=0))
+
+    def frame_with(chips):
+        return next(fi for fi in range(led_code.CODE_LENGTH) if (led_code.chip(j, fi), led_code.chip(k, fi)) == chips)
+
+    def resolve(fi, data_px):
+        det = Detection((centre[0] - 6, centre[1] - 3, centre[0] + 6, centre[1] + 3), centre, 1.0, data_centre_px=data_px)
+        track = Track(1, None, 1.0, IdDecoder(len(aid.ids)), confirmed=True, id_index=j, mixture=(j, k))
+        claimed, diag = set(), RelnavDiagnostics(1.05)
+        before = {n: f.counters["bearing_accepted"] for n, f in aid.filters.items()}
+        aid._resolved(track, det, fi, [], cam, np.eye(3), R_nc, np.zeros(3), f_px, 0.0, _level_estimate(), claimed, diag, "front")
+        return claimed, {n: f.counters["bearing_accepted"] - before[n] for n, f in aid.filters.items()}
+
+    claimed, fused = resolve(frame_with((0, 1)), px["far"])
+    assert claimed == {"far"} and fused == {"near": 0, "far": 1}
+    assert aid.assoc.ambiguity("far", aid.filters, Bearing(1.05, _m(offs["far"]), R_nc, np.zeros(3), f_px, 0.0)) is not None
+    claimed, fused = resolve(frame_with((1, 0)), px["near"])
+    assert claimed == {"near"} and fused == {"near": 1, "far": 0}
+    claimed, fused = resolve(frame_with((1, 1)), centre)  # both lit: the centroid is neither's
+    assert claimed == set() and fused == {"near": 0, "far": 0}
+    elsewhere = (px["near"][0] + 30.0, px["near"][1])  # a wrong pair's chips name a vehicle 30 px away
+    claimed, fused = resolve(frame_with((1, 0)), elsewhere)
+    assert claimed == set() and fused == {"near": 0, "far": 0}
+    assert aid.counters["mixture_bearings"] == 2 and aid.counters["mixture_frames_unresolved"] == 1
+    assert aid.counters["mixture_frames_unconfirmed"] == 1
+
+
+def _level_estimate():
+    """The observer's own estimate at rest at the origin, level, heading north."""
+    from testbench.core.messages import NavEstimate
+
+    z3 = np.zeros((3, 3))
+    return NavEstimate(1.05, np.zeros(3), np.zeros(3), np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(3), np.zeros(3),
+                       z3, z3, z3)
+
+
 def test_a_restart_further_than_the_neighbour_can_have_moved_is_refused():
     """Bearings rejected while ranges agree restart an estimate only near its prediction: a
     track wearing a wrong ID (another vehicle, 200 m away on the other side) must not move it."""

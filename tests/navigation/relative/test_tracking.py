@@ -207,3 +207,27 @@ def test_a_track_on_a_merged_blob_carries_no_id_while_merged():
         tr.update(0.1 * k, k, [_det(500, 300, 12.0 * _level(6, k))])
         shown.append(track.id_index)
     assert 3 not in shown and shown[-1] == 6
+
+
+def test_resolve_keeps_the_id_of_a_track_while_its_blob_is_merged():
+    """mixture_action "resolve": vehicle 3's track keeps the ID it decoded before vehicle 6's
+    dimmer blob joins it, carries the pair (3, 6) without changing its ID while they stay
+    merged (the aid then attributes each frame by the chips), and when they part the pair is
+    gone and the track goes on decoding."""
+    L = led_code.CODE_LENGTH
+    tr = Tracker(n_vehicles=10, own_index=0,
+                 settings=TrackerSettings(n_init=1, mixture_min_ratio=0.2, mixture_action="resolve"))
+    for k in range(2 * L):
+        tr.update(0.1 * k, k, [_det(500, 300, 40.0 * _level(3, k))])
+    (track,) = tr.tracks
+    assert track.id_index == 3 and track.mixture is None
+    pairs, ids = [], []
+    for k in range(2 * L, 4 * L):
+        tr.update(0.1 * k, k, [_det(500, 300, 40.0 * _level(3, k) + 12.0 * _level(6, k))])
+        pairs.append(track.mixture)
+        ids.append(track.id_index)
+    assert set(pairs[-1]) == {3, 6} and set(ids) == {3}
+    assert tr.counters["id_mixture_frames"] > 0 and tr.counters["id_mixture_dropped"] == 0
+    for k in range(4 * L, 7 * L):
+        tr.update(0.1 * k, k, [_det(500, 300, 40.0 * _level(3, k))])
+    assert track.mixture is None and track.id_index == 3
