@@ -76,7 +76,8 @@ class RelnavAid(NavigationAid):
                                     else np.asarray(params.target_offset_by_chip_b_m, float))  # (2, 3)
         self._target_data_b_m = np.asarray(params.target_offset_data_b_m if params.target_offset_data_b_m is not None
                                            else params.target_offset_b_m, float)
-        self._resolve_mixtures = params.tracker.mixture_action == "resolve"
+        self._resolve_mixtures = params.tracker.mixture_action in ("resolve", "resolve_or_decoded")
+        self._unresolved_as_decoded = params.tracker.mixture_action == "resolve_or_decoded"
         self._centre_reference = getattr(self.detector, "centre_reference", "vehicle_centre")
         if self._centre_reference == "vehicle_centre" and np.any(np.asarray(offsets, float)):
             # (A leftover LED offset with a CG detector biases every bearing: the oracle runs
@@ -171,8 +172,8 @@ class RelnavAid(NavigationAid):
         decoded = self._decoded_in_view()
         for tr in sorted((x for x in updated if x.confirmed), key=lambda x: -x.id_confidence):
             det = tr.last_detection
-            if self._resolve_mixtures and tr.mixture is not None:
-                self._resolved(tr, det, fi, truths, cam, R_nb, R_nc, lever_b, focal, att_sigma, est, claimed, diag, name)
+            if self._resolve_mixtures and tr.mixture is not None and self._resolved(
+                    tr, det, fi, truths, cam, R_nb, R_nc, lever_b, focal, att_sigma, est, claimed, diag, name):
                 continue
             peer = self.ids[tr.id_index] if tr.id_index is not None else None
             truth = id_truth(det, truths, self._centre_reference, self._id_tie_px) if truths else None  # scoring only, never fused
@@ -205,24 +206,25 @@ class RelnavAid(NavigationAid):
 
     def _resolved(self, tr: Any, det: Any, fi: int, truths: list, cam: Any, R_nb: np.ndarray, R_nc: np.ndarray,
                   lever_b: np.ndarray, focal: float, att_sigma: float, est: NavEstimate, claimed: set,
-                  diag: RelnavDiagnostics, name: str) -> None:
-        """A track whose blob merges two vehicles j, k (Track.mixture, tracker mixture_action
-        "resolve"). In LED frame fi the code lights the data LEDs of one of them only, of both,
-        or of neither. Where it lights one, the blob's data-LED pixels are that vehicle's alone,
-        so their centroid (Detection.data_centre_px, with target_offset_data_b_m) is its
-        bearing: fused into its running estimate when that estimate's gate takes it, and then
-        scored as an ID claim of it. Otherwise the frame gives nothing, and no estimate is
-        started from it.
+                  diag: RelnavDiagnostics, name: str) -> bool:
+        """Whether a frame of a track whose blob merges two vehicles j, k (Track.mixture,
+        tracker mixture_action "resolve" or "resolve_or_decoded") was dealt with here. In LED
+        frame fi the code lights the data LEDs of one of them only, of both, or of neither.
+        Where it lights one, the blob's data-LED pixels are that vehicle's alone, so their
+        centroid (Detection.data_centre_px, with target_offset_data_b_m) is its bearing: fused
+        into its running estimate when that estimate's gate takes it, and then scored as an ID
+        claim of it (no estimate is started from it). A frame whose chips agree gives nothing
+        with "resolve"; with "resolve_or_decoded" it is returned to the caller (False), which
+        treats the track as any other: its decoded ID, if any, claims the blob.
 
         Why: on the arrowhead's lattice lines two vehicles 100 m apart stand 3-8 px from each
         other and their LEDs join one blob, whose blink decodes as the brighter while its centre
-        lies between them. Off in the shipped scenarios: docs/measurements.md ("Chip-resolved
-        bearings of merged blobs")."""
+        lies between them. docs/measurements.md ("Chip-resolved bearings of merged blobs")."""
         j, k = tr.mixture
         chips = tr.decoder.book[:, fi % led_code.CODE_LENGTH]
         if chips[j] == chips[k] or det.data_centre_px is None:
             self.counters["mixture_frames_unresolved"] += 1
-            return
+            return not self._unresolved_as_decoded
         peer = self.ids[j if chips[j] else k]
         det = replace(det, centre_px=det.data_centre_px)
         off_n = R_nb @ (lever_b - self._target_data_b_m)
@@ -234,7 +236,7 @@ class RelnavAid(NavigationAid):
             # an estimate from such a bearing, as an identified track would, was tried: relnav
             # mean 0.166 / 0.182 -> 0.183 / 0.200 m, seeds 1 / 2, the formation no better.)
             self.counters["mixture_frames_unconfirmed"] += 1
-            return
+            return True
         claimed.add(peer)
         truth = id_truth(det, truths, self._centre_reference, self._id_tie_px) if truths else None  # scoring only
         self._score_claim(diag, name, tr.track_id, peer, truth, float("nan"))
@@ -242,6 +244,7 @@ class RelnavAid(NavigationAid):
         # No ambiguity test: the other vehicle of the blob stands a few pixels away, inside the
         # gate of its estimate, and the chips already say whose LEDs these are.
         self._update_with(peer, f, bearing, truth, est, check_ambiguity=False)
+        return True
 
     def _score_claim(self, diag: RelnavDiagnostics, camera: str, track_id: int, peer: str, truth: Any,
                      confidence: float) -> None:

@@ -63,7 +63,7 @@ class TrackerParams(ParamsModel):
     id_keep_prob: float = pydantic.Field(0.5, ge=0, lt=1)
     mixture_min_ratio: float | None = pydantic.Field(None, gt=0, le=1)
     mixture_min_f: float = pydantic.Field(2.0, ge=0)
-    mixture_action: Literal["drop", "resolve"] = "drop"
+    mixture_action: Literal["drop", "resolve", "resolve_or_decoded"] = "drop"
 
 
 class RelnavParams(ParamsModel):

@@ -67,9 +67,10 @@ class TrackerSettings:
     formation, sensitive to the set of neighbours each follower estimates, came out worse in
     two of three realisations, so the shipped scenarios leave it off: docs/measurements.md,
     "What the wrong track IDs are"); mixture_action: what such a track does: "drop" its ID
-    and chips and decode afresh, or "resolve": keep its ID and chips, claim and change no ID
-    while the window is a mixture, and hold the pair in Track.mixture, whose frames the
-    relative-navigation aid attributes by the pair's chips (RelnavAid._resolved)."""
+    and chips and decode afresh, or "resolve" / "resolve_or_decoded": keep its ID and chips,
+    assign and change no ID while the window is a mixture, and hold the pair in
+    Track.mixture, whose frames the relative-navigation aid attributes by the pair's chips
+    (RelnavAid._resolved; the two differ there, in the frames the chips cannot attribute)."""
 
     sigma_px_min: float = 0.7
     pos_sigma_frac: float = 0.1
@@ -274,7 +275,7 @@ class Tracker:
                 # Its chips no longer single it out (a blob merged with another vehicle's).
                 self.counters["id_lost"] += 1
                 tr.id_index, tr.id_confidence = None, 0.0
-        if self.s.mixture_min_ratio is not None and self.s.mixture_action == "resolve" and self._resolved_as_mixture(tr):
+        if self.s.mixture_min_ratio is not None and self.s.mixture_action != "drop" and self._resolved_as_mixture(tr):
             return
         if post is None:
             return
@@ -295,7 +296,8 @@ class Tracker:
         tr.id_index, tr.id_confidence = k, conf
 
     def _resolved_as_mixture(self, tr: Track) -> bool:
-        """Whether `tr`'s window of levels mixes two code words (mixture_action "resolve"):
+        """Whether `tr`'s window of levels mixes two code words (mixture_action "resolve" or
+        "resolve_or_decoded"):
         then Track.mixture holds the pair, the track keeps its ID and chips but neither claims
         nor changes an ID while it does, and the caller attributes each frame to the one
         vehicle of the pair whose chip is on (RelnavAid)."""

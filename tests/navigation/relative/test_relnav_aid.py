@@ -248,6 +248,8 @@ def test_a_merged_blob_gives_a_bearing_to_the_vehicle_whose_data_leds_alone_are_
     test would refuse it for) and claimed as its ID; where the code lights both, or the
     centroid lies where the named vehicle's estimate does not put it (a blob of three vehicles
     fits a wrong pair), nothing is fused or claimed."""
+    from dataclasses import replace
+
     from testbench.core import led_code
     from testbench.navigation.relative.diagnostics import RelnavDiagnostics
     from testbench.navigation.relative.idcode import IdDecoder
@@ -284,6 +286,15 @@ def test_a_merged_blob_gives_a_bearing_to_the_vehicle_whose_data_leds_alone_are_
     assert claimed == set() and fused == {"near": 0, "far": 0}
     assert aid.counters["mixture_bearings"] == 2 and aid.counters["mixture_frames_unresolved"] == 1
     assert aid.counters["mixture_frames_unconfirmed"] == 1
+    # "resolve_or_decoded": a frame the chips cannot attribute goes back to the caller, whose
+    # decoded-ID path then claims the blob; an attributed one is dealt with here either way.
+    track = Track(1, None, 1.0, IdDecoder(len(aid.ids)), confirmed=True, id_index=j, mixture=(j, k))
+    det = Detection((centre[0] - 6, centre[1] - 3, centre[0] + 6, centre[1] + 3), centre, 1.0, data_centre_px=centre)
+    args = ([], cam, np.eye(3), R_nc, np.zeros(3), f_px, 0.0, _level_estimate(), set(), RelnavDiagnostics(1.1), "front")
+    assert aid._resolved(track, det, frame_with((1, 1)), *args) is True
+    aid._unresolved_as_decoded = True
+    assert aid._resolved(track, det, frame_with((1, 1)), *args) is False
+    assert aid._resolved(track, replace(det, data_centre_px=px["far"]), frame_with((0, 1)), *args) is True
 
 
 def _level_estimate():
