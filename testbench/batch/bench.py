@@ -41,13 +41,16 @@ def oracle_swarm_overrides() -> tuple[str, ...]:
     (0.5 px noise), the issue's "without cameras" case. The oracle's centre is the projection
     of the vehicle's centre, so the aid's target offsets (the LED detector's LED centroid,
     0.02-0.22 m above it by blink chip) go to zero: kept, they put a 0.11-0.13 m height bias
-    into every estimate."""
+    into every estimate. Its detections are one per vehicle, never merged blobs, so the
+    tracker's test for merged blinks is off too."""
     out: list[str] = []
     for v in SWARM_IDS:
         out += [f"vehicles.{v}.sensors.{cam}.render_image=false" for cam in ("front", "left", "right")]
         out.append(f"vehicles.{v}.aids.relnav.detector={{type: oracle, params: {{sigma_px: 0.5}}}}")
         out.append(f"vehicles.{v}.aids.relnav.target_offset_b_m=[0.0, 0.0, 0.0]")
         out.append(f"vehicles.{v}.aids.relnav.target_offset_by_chip_b_m=null")
+        out.append(f"vehicles.{v}.aids.relnav.target_offset_data_b_m=null")
+        out.append(f"vehicles.{v}.aids.relnav.tracker.mixture_min_ratio=null")
     return tuple(out)
 
 

@@ -70,7 +70,8 @@ class RelnavAid(NavigationAid):
         if rng is None:
             rng = np.random.default_rng(np.random.SeedSequence([params.seed, zlib.crc32(self.self_id.encode())]))
         self.detector = build("detector", params.detector.type, params.detector.params, "relnav.detector", ctx=ctx, rng=rng)
-        offsets = [params.target_offset_b_m, *(params.target_offset_by_chip_b_m or ())]
+        offsets = [params.target_offset_b_m, *(params.target_offset_by_chip_b_m or ()),
+                   *((params.target_offset_data_b_m,) if params.target_offset_data_b_m is not None else ())]
         self._target_b_m = np.asarray(params.target_offset_b_m, float)
         self._target_by_chip_b_m = (None if params.target_offset_by_chip_b_m is None
                                     else np.asarray(params.target_offset_by_chip_b_m, float))  # (2, 3)
@@ -82,7 +83,7 @@ class RelnavAid(NavigationAid):
         if self._centre_reference == "vehicle_centre" and np.any(np.asarray(offsets, float)):
             # (A leftover LED offset with a CG detector biases every bearing: the oracle runs
             # of the swarm benchmark carried the LED's 0.13 m, swarm_cnn likewise.)
-            raise InputError(f"relnav.target_offset_b_m / target_offset_by_chip_b_m: detector {params.detector.type!r} "
+            raise InputError(f"relnav.target_offset_b_m / target_offset_by_chip_b_m / target_offset_data_b_m: detector {params.detector.type!r} "
                              f"reports the vehicle's centre, so the target offsets must be zero (got {offsets})")
         if params.target_extent_m is not None and not getattr(self.detector, "box_shows_extent", True):
             raise InputError(f"relnav.target_extent_m: detector {params.detector.type!r} reports boxes of the LEDs' glow, "
