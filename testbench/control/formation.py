@@ -95,7 +95,26 @@ def formation_errors(pos_ned_by_id: dict[str, np.ndarray], course_rad: float, sl
             for k, p in pos_ned_by_id.items() if k != leader_id and k in slots}
 
 
-class FormationParams(ParamsModel):
+class FollowerParams(ParamsModel):
+    """What every follower's law takes: slots (id -> (forward_m, right_m, down_m) in the
+    formation frame, own id required); k_slot (1/s): gain on the slot error; max_age_s,
+    max_sigma_m: neighbour estimates older or more uncertain (sqrt trace of the position
+    covariance) than this are not used; margin_m, k_repulse (1/s): collision-avoidance margin
+    and gain; max_speed_mps, max_climb_rate_mps; max_accel_mps2: slew limit of the velocity
+    command."""
+
+    slots: dict[str, tuple[float, float, float]]
+    k_slot: float = pydantic.Field(0.4, gt=0)
+    max_age_s: float = pydantic.Field(2.0, gt=0)
+    max_sigma_m: float = pydantic.Field(3.0, gt=0)
+    margin_m: float = pydantic.Field(15.0, ge=0)
+    k_repulse: float = pydantic.Field(0.5, ge=0)
+    max_speed_mps: float = pydantic.Field(10.0, gt=0)
+    max_climb_rate_mps: float = pydantic.Field(2.0, gt=0)
+    max_accel_mps2: float = pydantic.Field(1.5, gt=0)
+
+
+class FormationParams(FollowerParams):
     """slots: id -> (forward_m, right_m, down_m) in the formation frame (own id required);
     leader_id, leader_weight: weight of the leader's term (others 1); k_slot (1/s): slot gain;
     ff_tau_s: low-pass time constant of the velocity feed-forward (seconds, not less: v_j is
@@ -131,10 +150,8 @@ class FormationParams(ParamsModel):
     of ours (closer to the leader; all of them when none ahead is fresh), so that the lag of the
     followers behind does not drag the formation (a directed leader-follower chain)."""
 
-    slots: dict[str, tuple[float, float, float]]
     leader_id: str | None = None
     leader_weight: float = pydantic.Field(2.0, gt=0)
-    k_slot: float = pydantic.Field(0.4, gt=0)
     ff_tau_s: float = pydantic.Field(4.0, ge=0)
     course_rate_tau_s: float = pydantic.Field(4.0, ge=0)
     max_course_rate_deg_s: float = pydantic.Field(2.0, gt=0)
@@ -144,13 +161,6 @@ class FormationParams(ParamsModel):
     geometry_tau_s: float = pydantic.Field(2.0, ge=0)
     course_min_speed_mps: float = pydantic.Field(1.0, ge=0)
     course_full_speed_mps: float | None = pydantic.Field(None, gt=0)
-    margin_m: float = pydantic.Field(15.0, ge=0)
-    k_repulse: float = pydantic.Field(0.5, ge=0)
-    max_age_s: float = pydantic.Field(2.0, gt=0)
-    max_speed_mps: float = pydantic.Field(10.0, gt=0)
-    max_climb_rate_mps: float = pydantic.Field(2.0, gt=0)
-    max_accel_mps2: float = pydantic.Field(1.5, gt=0)
-    max_sigma_m: float = pydantic.Field(3.0, gt=0)
     ahead_only: bool = True
 
 
@@ -163,6 +173,14 @@ class FollowerLaw:
     v_out: np.ndarray | None
     error_ned_m: np.ndarray
     n_seen: int
+
+    t_prev: float | None
+
+    def _step_dt(self, t_s: float) -> float:
+        """Seconds since the last command (0 at the first), t_s kept for the next."""
+        dt = 0.0 if self.t_prev is None else max(t_s - self.t_prev, 0.0)
+        self.t_prev = t_s
+        return dt
 
     def _limit(self, v: np.ndarray, dt: float) -> np.ndarray:
         self.v_out = limit_velocity(v, self.v_out, dt, self.p.max_speed_mps, self.p.max_climb_rate_mps, self.p.max_accel_mps2)
@@ -210,8 +228,7 @@ class FormationLaw(FollowerLaw):
         """v_cmd (3,) NED m/s from the own estimate and the NeighbourTable."""
         p = self.p
         pos, vel = np.asarray(est.pos_ned_m, float), np.asarray(est.vel_ned_mps, float)
-        dt = 0.0 if self.t_prev is None else max(t_s - self.t_prev, 0.0)
-        self.t_prev = t_s
+        dt = self._step_dt(t_s)
         if self.course is None:
             self.course = self.course_lead = float(est.rpy_rad[2])
             self.v_ff = np.array([vel[0], vel[1], 0.0])

@@ -28,10 +28,10 @@ from typing import Any
 import numpy as np
 import pydantic
 
-from testbench.control.formation import FollowerLaw, FormationFollower, add_repulsion
+from testbench.control.formation import FollowerLaw, FollowerParams, FormationFollower, add_repulsion
 from testbench.core.errors import InputError
 from testbench.core.messages import NavEstimate
-from testbench.core.registry import ParamsModel, register
+from testbench.core.registry import register
 
 
 class Trail:
@@ -117,7 +117,7 @@ def column_errors(pos_ned_by_id: dict[str, np.ndarray], leader_trail: Trail, slo
     return out
 
 
-class ColumnParams(ParamsModel):
+class ColumnParams(FollowerParams):
     """slots: id -> (forward_m, right_m, down_m), as for the rigid formation; the forward
     difference to the vehicle followed is the spacing along the path. follow_id: the only
     vehicle whose path we fly (default: the nearest vehicle ahead in sight, by slot); k_slot
@@ -127,18 +127,9 @@ class ColumnParams(ParamsModel):
     put on the trail); margin_m, k_repulse: collision avoidance against every fresh neighbour;
     max_speed_mps, max_climb_rate_mps, max_accel_mps2 as for the rigid formation."""
 
-    slots: dict[str, tuple[float, float, float]]
     follow_id: str | None = None
-    k_slot: float = pydantic.Field(0.4, gt=0)
     speed_tau_s: float = pydantic.Field(2.0, ge=0)
     crumb_m: float = pydantic.Field(2.0, gt=0)
-    max_age_s: float = pydantic.Field(2.0, gt=0)
-    max_sigma_m: float = pydantic.Field(3.0, gt=0)
-    margin_m: float = pydantic.Field(15.0, ge=0)
-    k_repulse: float = pydantic.Field(0.5, ge=0)
-    max_speed_mps: float = pydantic.Field(10.0, gt=0)
-    max_climb_rate_mps: float = pydantic.Field(2.0, gt=0)
-    max_accel_mps2: float = pydantic.Field(1.5, gt=0)
 
 
 def vehicles_ahead(slots: dict[str, Any], self_id: str) -> list[str]:
@@ -213,8 +204,7 @@ class TrailLaw(FollowerLaw):
     def velocity_command(self, t_s: float, est: NavEstimate, table: dict | None) -> np.ndarray:
         p = self.p
         pos, vel = np.asarray(est.pos_ned_m, float), np.asarray(est.vel_ned_mps, float)
-        dt = 0.0 if self.t_prev is None else max(t_s - self.t_prev, 0.0)
-        self.t_prev = t_s
+        dt = self._step_dt(t_s)
         if self.course_lead is None:
             self.course_lead = float(est.rpy_rad[2])
         if self.v_out is None:
