@@ -95,7 +95,8 @@ class RelnavAid(NavigationAid):
         self.trackers = {n: Tracker(len(self.ids), self.own_index, ts) for n in params.cameras}
         self.fset = FilterSettings(**params.filter.model_dump())
         self.assoc = AssociationRules(self.fset.bearing_sigma_px, params.assoc_max_sigma_m, params.report_max_age_s,
-                                      params.occlusion_margin_m, params.restart_max_jump_m, params.forgotten_speed_mps)
+                                      params.occlusion_margin_m, params.restart_max_jump_m, params.forgotten_speed_mps,
+                                      self.fset.bearing_sigma_model)
         self.id_conf: dict[str, float] = {}
         # Diagnostics only: did the last bearing fused for a peer come from that peer (frame
         # truth)? peer -> (IdTruth.score, ambiguous 1.0/0.0). Vehicles whose expected points lie

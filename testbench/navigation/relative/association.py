@@ -25,7 +25,7 @@ from typing import Mapping
 
 import numpy as np
 
-from testbench.navigation.relative.neighbour_filter import NeighbourFilter
+from testbench.navigation.relative.neighbour_filter import NeighbourFilter, bearing_noise_cov
 
 _I2 = np.eye(2)  # read-only identity, reused by every d2
 _I2.flags.writeable = False
@@ -51,7 +51,9 @@ class AssociationRules:
     """bearing_sigma_px: pixel noise of a detection centre; assoc_max_sigma_m: a settled
     estimate's largest position sigma (sqrt trace); healthy_age_s: an estimate with a bearing
     fused this recently is healthy; occlusion_margin_m: a neighbour this much nearer occludes;
-    restart_max_jump_m, restart_speed_mps: the reach of a restart (within_reach)."""
+    restart_max_jump_m, restart_speed_mps: the reach of a restart (within_reach);
+    bearing_sigma_model: how the pixel noise spreads over the image
+    (neighbour_filter.bearing_noise_cov), as in the neighbour filters."""
 
     bearing_sigma_px: float
     assoc_max_sigma_m: float
@@ -59,6 +61,7 @@ class AssociationRules:
     occlusion_margin_m: float
     restart_max_jump_m: float = 30.0
     restart_speed_mps: float = 5.0
+    bearing_sigma_model: str = "pixel"
 
     def within_reach(self, anchor: NeighbourFilter, candidate: NeighbourFilter, t_s: float) -> bool:
         """Whether a restart at candidate's position is a move the neighbour can have made since
@@ -77,7 +80,7 @@ class AssociationRules:
         m_pred = self.predicted_m_xy(f, b)
         if m_pred is None:
             return float("inf")
-        R = _I2 * ((self.bearing_sigma_px / b.focal_px) ** 2 + b.att_sigma_rad**2)
+        R = bearing_noise_cov(b.m_xy, self.bearing_sigma_px, b.focal_px, self.bearing_sigma_model) + _I2 * b.att_sigma_rad**2
         _, H = f.bearing_model(b.R_nc, b.cam_offset_ned_m)
         S = H @ f.P @ H.T + R
         y = b.m_xy - m_pred

@@ -11,7 +11,9 @@ at 2 m/s^2 while its bearings were stale carried its neighbours' estimates 10 m 
 claimed sigma of 1 m. Measurements:
 - bearing: normalised image coordinates m = (d_x/d_z, d_y/d_z) of d = R_nc^T (r - c), c the
   camera centre offset R_nb l_cam (NED), R_nc = R_nb R_bc with the OWN ESTIMATED attitude; noise
-  (sigma_px / f)^2 plus the attitude uncertainty mapped through (1 + m^2);
+  (bearing_noise_cov) the detection's, (sigma_px / f)^2 alike over the image ("pixel") or
+  stretched as the lens stretches angles ("angle"), plus the attitude uncertainty mapped
+  through (1 + m^2);
 - range: rho = |r + b| + n, b = R_nb (l_uwb_peer - l_uwb_self) (zero for one installation).
 Robustness to NLOS (a positive excess W >= 0 on the range): the normalised innovation squared
 of a range longer than predicted is gated at the chi-square(1) quantile and rejected ranges
@@ -45,10 +47,35 @@ def constant_velocity_F(dt_s: float) -> np.ndarray:
     return F
 
 
+def bearing_noise_cov(m_xy: np.ndarray, sigma_px: float, focal_px: float, model: str) -> np.ndarray:
+    """Covariance (2, 2) of a detection's normalised image coordinates m_xy (2,) (undistorted)
+    for a centre error of sigma_px pixels at the image centre (focal length focal_px).
+
+    "pixel": (sigma_px / f)^2 I, alike over the whole image. "angle": the error is an angle,
+    sigma_px / f radians wherever the vehicle stands, which a rectilinear (pinhole) projection
+    stretches radially by 1 + r^2 and tangentially by sqrt(1 + r^2) (r = |m| = tan of the
+    angle off the optical axis): (sigma_px / f)^2 (1 + m.m) (I + m m^T). At the horizontal edge
+    of a 120 deg field (r = 1.73) that is 4x radially and 2x tangentially.
+
+    Why "angle": an LED detection's error is mostly the vehicle's own extent and what stands
+    on its line of sight (which LEDs are lit, a vehicle 100 m behind it), both angles. On the
+    arrowhead (paper_swarm_relnav, LED, 90 s) the centres within 60 px of a side camera's
+    left or right edge erred by 4.4-6.5 px (sd) horizontally and 0.9-1.3 px vertically against
+    0.99 / 0.37 px inside, so a constant pixel sigma weighted the edge bearings up to
+    sixteen times too heavily (docs/measurements.md, "Bearings at the cameras' edges")."""
+    s2 = (sigma_px / focal_px) ** 2
+    if model == "pixel":
+        return _I2 * s2
+    m = np.asarray(m_xy, float)
+    return s2 * (1.0 + float(m @ m)) * (_I2 + np.outer(m, m))
+
+
 @dataclass(frozen=True)
 class FilterSettings:
     """sigma_accel_mps2: relative acceleration noise; range_sigma_m: UWB noise;
-    bearing_sigma_px: pixel noise of a detection centre; robust: gate ranges (NLOS);
+    bearing_sigma_px: pixel noise of a detection centre (at the image centre);
+    bearing_sigma_model: how that noise spreads over the image, "pixel" or "angle"
+    (bearing_noise_cov); robust: gate ranges (NLOS);
     gate_prob: chi-square gate probability (ranges and bearings);
     max_consecutive_rejects: after this many rejected ranges in a row, accept one softly;
     init_vel_sigma_mps: initial relative-velocity uncertainty."""
@@ -56,6 +83,7 @@ class FilterSettings:
     sigma_accel_mps2: float = 1.0
     range_sigma_m: float = 0.10
     bearing_sigma_px: float = 1.0
+    bearing_sigma_model: str = "pixel"
     robust: bool = True
     gate_prob: float = 0.999
     max_consecutive_rejects: int = 10
@@ -148,8 +176,8 @@ class NeighbourFilter:
             self.counters["bearing_rejected"] += 1
             self.consecutive_bearing_rejects += 1
             return float("inf"), False
-        sig2 = (self.s.bearing_sigma_px / focal_px) ** 2 + att_sigma_rad**2 * (1.0 + m @ m) ** 2
-        R = _I2 * sig2
+        R = (bearing_noise_cov(m, self.s.bearing_sigma_px, focal_px, self.s.bearing_sigma_model)
+             + _I2 * (att_sigma_rad**2 * (1.0 + m @ m) ** 2))
         y = m - h
         S = H @ self.P @ H.T + R
         nis = float(y @ np.linalg.solve(S, y))

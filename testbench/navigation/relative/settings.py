@@ -38,9 +38,13 @@ class RoiParams(ParamsModel):
 
 
 class FilterParams(ParamsModel):
+    """The neighbour filters' settings (relnav.filter): neighbour_filter.FilterSettings says
+    what each one means."""
+
     sigma_accel_mps2: float = pydantic.Field(1.0, gt=0)
     range_sigma_m: float = pydantic.Field(0.10, gt=0)
     bearing_sigma_px: float = pydantic.Field(1.0, gt=0)
+    bearing_sigma_model: Literal["pixel", "angle"] = "pixel"
     robust: bool = True
     gate_prob: float = pydantic.Field(0.999, gt=0, lt=1)
     max_consecutive_rejects: int = pydantic.Field(10, ge=0)

@@ -145,3 +145,57 @@ def test_ranges_do_not_clear_the_bearing_rejects_count():
         assert not f.update_bearing(0.1 * k, wrong, R_nc, c, F_PX)[1]
         assert f.update_range(0.1 * k + 0.05, 100.0)[1]
     assert f.consecutive_bearing_rejects == 5
+
+
+def _perturbed_m_xy(direction_c: np.ndarray, sigma_rad: float, n: int, rng) -> np.ndarray:
+    """(n, 2) normalised image coordinates of `direction_c` (camera frame, z forward) turned
+    by random angles of sigma_rad per axis perpendicular to it."""
+    d = direction_c / np.linalg.norm(direction_c)
+    a = np.cross(d, [0.0, 1.0, 0.0])
+    a /= np.linalg.norm(a)
+    b = np.cross(d, a)
+    e = rng.normal(0.0, sigma_rad, (n, 2))
+    rays = d + e[:, :1] * a + e[:, 1:] * b
+    return rays[:, :2] / rays[:, 2:]
+
+
+@pytest.mark.parametrize("off_axis_deg", [0.0, 30.0, 59.0])
+def test_angle_bearing_noise_is_an_angular_error_through_the_pinhole(off_axis_deg):
+    """bearing_noise_cov "angle": the covariance of a direction's image coordinates when the
+    direction errs by an angle, at the centre, 30 deg off axis, and at a 120 deg field's edge."""
+    from testbench.navigation.relative.neighbour_filter import bearing_noise_cov
+
+    rng = np.random.default_rng(3)
+    sigma_rad = 1.0 / F_PX
+    th = np.radians(off_axis_deg)
+    direction = np.array([np.sin(th) * 0.8, np.sin(th) * 0.6, np.cos(th)])  # off axis both ways
+    m = _perturbed_m_xy(direction, sigma_rad, 200_000, rng)
+    C_empirical = np.cov(m.T)
+    m0 = direction[:2] / direction[2]
+    C = bearing_noise_cov(m0, 1.0, F_PX, "angle")
+    assert np.allclose(C, C_empirical, rtol=0.03, atol=0.03 * C[0, 0])
+    # The stretch: radially (1 + r^2), tangentially sqrt(1 + r^2) times the centre's sigma.
+    r2 = float(m0 @ m0)
+    w = np.linalg.eigvalsh(C)
+    assert np.allclose(np.sqrt(w) * F_PX, sorted([np.sqrt(1 + r2), 1 + r2]), rtol=1e-9)
+    # "pixel" is the same everywhere: the centre's.
+    assert np.allclose(bearing_noise_cov(m0, 1.0, F_PX, "pixel"), np.eye(2) / F_PX**2)
+
+
+def test_angle_bearing_noise_leaves_the_centre_as_pixel_and_discounts_the_edge():
+    """Near the edge a bearing under "angle" moves the estimate less than under "pixel" (it is
+    worth less), at the centre alike."""
+    R_nc = MOUNT.R_bc
+    c = MOUNT.lever_arm_b_m
+    shifts = {}
+    for model in ("pixel", "angle"):
+        for name, r_true in (("centre", np.array([100.0, 0.0, 0.0])), ("edge", np.array([50.0, 86.6, 0.0]))):
+            f = NeighbourFilter(0.0, r_true, initial_covariance(r_true, 0.1, 0.002),
+                                FilterSettings(bearing_sigma_model=model))
+            d = (r_true - c) @ R_nc
+            m = d[:2] / d[2] + np.array([3.0 / F_PX, 0.0])  # a 3 px error along the image's u
+            f.update_bearing(0.0, m, R_nc, c, F_PX)
+            shifts[model, name] = float(np.linalg.norm(f.x[:3] - r_true))
+    assert shifts["angle", "centre"] == pytest.approx(shifts["pixel", "centre"], rel=1e-3)
+    assert shifts["angle", "edge"] < 0.7 * shifts["pixel", "edge"]
+
