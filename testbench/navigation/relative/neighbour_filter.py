@@ -60,7 +60,7 @@ def bearing_noise_cov(m_xy: np.ndarray, sigma_px: float, focal_px: float, model:
     Why "angle": an LED detection's error is mostly the vehicle's own extent and what stands
     on its line of sight (which LEDs are lit, a vehicle 100 m behind it), both angles. On the
     arrowhead (paper_swarm_relnav, LED, 90 s) the centres within 60 px of a side camera's
-    left or right edge erred by 4.4-6.5 px (sd) horizontally and 0.9-1.3 px vertically against
+    left or right edge erred by 3.7-6.5 px (sd) horizontally and 0.9-1.3 px vertically against
     0.99 / 0.37 px inside, so a constant pixel sigma weighted the edge bearings up to
     sixteen times too heavily (docs/measurements.md, "Bearings at the cameras' edges")."""
     s2 = (sigma_px / focal_px) ** 2
