@@ -10,9 +10,9 @@ Without it our own manoeuvres would have to hide in sigma_accel too, and a follo
 at 2 m/s^2 while its bearings were stale carried its neighbours' estimates 10 m away with a
 claimed sigma of 1 m. Measurements:
 - bearing: normalised image coordinates m = (d_x/d_z, d_y/d_z) of d = R_nc^T (r - c), c the
-  camera centre offset R_nb l_cam (NED), R_nc = R_nb R_bc with the OWN ESTIMATED attitude; noise
-  (bearing_noise_cov) the detection's, (sigma_px / f)^2 alike over the image ("pixel") or
-  stretched as the lens stretches angles ("angle"), plus the attitude uncertainty mapped
+  camera centre offset R_nb l_cam (NED), R_nc = R_nb R_bc with the OWN ESTIMATED attitude; noise:
+  the detection's (bearing_noise_cov: (sigma_px / f)^2 alike over the image, "pixel", or
+  stretched as the lens stretches angles, "angle") plus the attitude uncertainty mapped
   through (1 + m^2);
 - range: rho = |r + b| + n, b = R_nb (l_uwb_peer - l_uwb_self) (zero for one installation).
 Robustness to NLOS (a positive excess W >= 0 on the range): the normalised innovation squared
@@ -66,6 +66,8 @@ def bearing_noise_cov(m_xy: np.ndarray, sigma_px: float, focal_px: float, model:
     s2 = (sigma_px / focal_px) ** 2
     if model == "pixel":
         return _I2 * s2
+    if model != "angle":
+        raise ValueError(f"bearing_sigma_model: {model!r}, expected 'pixel' or 'angle'")
     m = np.asarray(m_xy, float)
     return s2 * (1.0 + float(m @ m)) * (_I2 + np.outer(m, m))
 

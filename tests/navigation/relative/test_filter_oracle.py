@@ -180,6 +180,8 @@ def test_angle_bearing_noise_is_an_angular_error_through_the_pinhole(off_axis_de
     assert np.allclose(np.sqrt(w) * F_PX, sorted([np.sqrt(1 + r2), 1 + r2]), rtol=1e-9)
     # "pixel" is the same everywhere: the centre's.
     assert np.allclose(bearing_noise_cov(m0, 1.0, F_PX, "pixel"), np.eye(2) / F_PX**2)
+    with pytest.raises(ValueError, match="bearing_sigma_model"):
+        bearing_noise_cov(m0, 1.0, F_PX, "pixels")
 
 
 def test_angle_bearing_noise_leaves_the_centre_as_pixel_and_discounts_the_edge():
