@@ -16,7 +16,9 @@ Consensus law (over fresh neighbours j with weights a_j, leader weight configura
   v_rot = omega z x sum_j a_j R(chi) (s_self - s_j)                   (the slot's turn)
   v_cmd = v_ff + tau_ff a_ff + v_rot + k_slot e + sum_{j: |r_j| < margin} k_rep (|r_j| - margin) r_j / |r_j|
 (a_ff the low-passed rate of v_ff; chi in R(chi) likewise carried forward by omega times its
-filter's time constant: the low-passes must smooth the estimates, not delay them)
+filter's time constant: the low-passes must smooth the estimates, not delay them; with
+course_accel_tau_s the course's acceleration alpha, the low-passed rate of omega, carries chi
+forward too, for the lag the two low-passes leave in a turn's roll-in and roll-out)
 omega is the low-passed rate of chi: while the formation turns, a slot d metres from the
 neighbours followed moves omega d faster than they do (without v_rot a follower 300 m out lags
 its slot by omega d / k_slot, 6.5 m at 0.5 deg/s).
@@ -122,6 +124,12 @@ class FormationParams(FollowerParams):
     fast feed-forward feeds our own velocity back through that lag; with 1 s the back rows of
     the arrowhead swung 20-60 m about their slots); course_rate_tau_s: that of the course rate
     omega (v_rot; 0 leaves v_rot out), clamped to max_course_rate_deg_s;
+    course_accel_tau_s: that of the course's acceleration alpha (0: none), the rate of omega,
+    which leads chi by tau course_rate_tau_s alpha (tau the course's own low-pass,
+    geometry_tau_s or ff_tau_s): the two first-order low-passes follow a ramp of the rate (the
+    leader rolling into a turn) with that lag, and the rows of an arrowhead add it up; clamped
+    to max_course_accel_deg_s2, and held at 0 below course_full_speed_mps (or
+    course_min_speed_mps), where the course wanders by degrees;
     max_course_slew_deg_s: the course this follower holds turns at most this fast (set it a
     little above the leader's turn-rate limit; None: no limit). Why: the layout course jumps
     when the set of followed neighbours changes (one goes stale, or a new one turns fresh) and
@@ -154,6 +162,8 @@ class FormationParams(FollowerParams):
     leader_weight: float = pydantic.Field(2.0, gt=0)
     ff_tau_s: float = pydantic.Field(4.0, ge=0)
     course_rate_tau_s: float = pydantic.Field(4.0, ge=0)
+    course_accel_tau_s: float = pydantic.Field(0.0, ge=0)
+    max_course_accel_deg_s2: float = pydantic.Field(0.1, gt=0)
     max_course_rate_deg_s: float = pydantic.Field(2.0, gt=0)
     max_course_slew_deg_s: float | None = pydantic.Field(None, gt=0)
     course_coast_s: float = pydantic.Field(0.0, ge=0)
@@ -213,6 +223,7 @@ class FormationLaw(FollowerLaw):
         self.s_self = np.asarray(p.slots[self_id], float)
         self.course: float | None = None
         self.course_rate_rps = 0.0
+        self.course_accel_rps2 = 0.0  # low-passed rate of course_rate_rps (course_accel_tau_s)
         self.course_lead: float | None = None  # course carried forward by its filter's lag
         self._course_lag_s = 0.0
         self._geometry_t_s: float | None = None  # when the layout last gave the course
@@ -296,13 +307,37 @@ class FormationLaw(FollowerLaw):
         if course is not None:
             if dt > 0 and b > 0:
                 rate = wrap_pi(course - self.course) / dt
+                rate_before = self.course_rate_rps
                 self.course_rate_rps += b * (rate - self.course_rate_rps)
+                if p.course_accel_tau_s > 0:
+                    # Below course_full_speed_mps (the start-up) the course wanders by degrees,
+                    # and its second difference is that wander, not a turn: alpha decays to 0.
+                    slow = math.hypot(self.v_ff[0], self.v_ff[1]) < (p.course_full_speed_mps or p.course_min_speed_mps)
+                    accel = 0.0 if slow else (self.course_rate_rps - rate_before) / dt
+                    c = min(1.0, dt / p.course_accel_tau_s)
+                    self.course_accel_rps2 += c * (accel - self.course_accel_rps2)
+                    acc_max = math.radians(p.max_course_accel_deg_s2)
+                    self.course_accel_rps2 = float(np.clip(self.course_accel_rps2, -acc_max, acc_max))
             self.course = course
-        om = float(np.clip(self.course_rate_rps, -om_max, om_max)) if p.course_rate_tau_s > 0 else 0.0
         # Lead: a first-order low-pass lags a ramp by its time constant (2 deg of course at
         # 0.5 deg/s through 4 s, 3.5 m at 100 m), so the filtered course and velocity are carried
-        # forward by their estimated rates times that lag.
-        self.course_lead = self.course + om * self._course_lag_s
+        # forward by their estimated rates times that lag. With the course's acceleration alpha
+        # estimated too (course_accel_tau_s), the second-order lags go as well: for a course
+        # chi(t) with constant alpha, the course low-passed by tau (the lag) and its rate
+        # low-passed by tau_w give chi = course + tau w_hat + tau tau_w alpha and the rate now
+        # w = w_hat + (tau + tau_w) alpha. Without them each row of the arrowhead lags its slot
+        # across the course by about 7 s^2 times alpha times its distance from the neighbours it
+        # follows, and the rows add up (paper_swarm_relnav: the back row 22 s^2 alpha per metre
+        # behind the leader, 1.5-1.7 m RMS of its 2.3-2.6 m across the course).
+        # The rate in v_rot is not led by alpha: measured so (w_hat + (tau + tau_w) alpha), the
+        # course's wander in straight flight (alpha_hat 0.005-0.013 deg/s^2 RMS) went into every
+        # follower's velocity command, and the arrowhead swung about its slots with a 15 s period
+        # (LED, 300 s: slot-error rate 0.23-0.48 -> 0.40-0.69 m/s RMS, relnav mean 0.165 / 0.180 /
+        # 0.161 -> 0.176 / 0.193 / 0.177 m); through the course, the slot loop filters it.
+        lag_s, alpha = self._course_lag_s, self.course_accel_rps2
+        om = float(np.clip(self.course_rate_rps, -om_max, om_max)) if p.course_rate_tau_s > 0 else 0.0
+        rate_lead = self.course_rate_rps + alpha * p.course_rate_tau_s
+        self.course_lead = self.course + (float(np.clip(rate_lead, -om_max, om_max)) * lag_s if p.course_rate_tau_s > 0 else 0.0)
         v_lead = self.v_ff + (p.ff_tau_s * self.accel_ff if p.course_rate_tau_s > 0 else 0.0)
         R = formation_rotation(self.course_lead)
         # Offsets of our slot from the followed neighbours' slots, in NED (weighted).

@@ -287,3 +287,74 @@ def test_velocity_course_is_smoothed_more_at_low_speed():
     assert rms[3.0] < 0.3 * rms[None], rms  # (with this noise 0.7 deg against 2.7 deg)
     cruise = lambda t: 3.0  # noqa: E731
     np.testing.assert_array_equal(courses(3.0, cruise), courses(None, cruise))
+
+
+def test_course_acceleration_removes_the_second_order_lag_of_a_turn_entry():
+    """The formation rolls into a 0.5 deg/s turn at 0.025 deg/s^2 (the leader's roll-in), holds
+    it, and rolls out. We sit exactly on our slot, our neighbours on theirs with the velocities
+    of the turning formation. The course low-pass and its rate's low-pass lag such a turn
+    entry by (tau tau_w) alpha in course and (tau + tau_w) alpha in rate; estimating alpha
+    (course_accel_tau_s) takes most of it out of the course, and so part of the velocity
+    command's error (the rate in v_rot is left as it is)."""
+    from testbench.control.formation import formation_rotation
+
+    slots = {"lead": (0.0, 0.0, 0.0), "a": (-86.6, -50.0, 0.0), "b": (-86.6, 50.0, 0.0), "me": (-173.2, -100.0, 0.0)}
+    alpha = math.radians(0.025)
+
+    def course_and_rate(t):
+        if t < 20.0:
+            return 0.0, 0.0
+        if t < 40.0:
+            return 0.5 * alpha * (t - 20.0) ** 2, alpha * (t - 20.0)
+        w = 20.0 * alpha
+        if t < 80.0:
+            return 10.0 * w + w * (t - 40.0), w
+        if t < 100.0:
+            return 50.0 * w + w * (t - 80.0) - 0.5 * alpha * (t - 80.0) ** 2, w - alpha * (t - 80.0)
+        return 60.0 * w, 0.0
+
+    def velocity(slot, chi, w):  # the rigid formation pivoting about the leader
+        arm = formation_rotation(chi) @ (np.asarray(slot, float) - slots["lead"])
+        return 4.0 * np.array([math.cos(chi), math.sin(chi), 0.0]) + w * np.array([-arm[1], arm[0], 0.0])
+
+    rms = {}
+    for tau_a in (0.0, 2.0):
+        law = FormationLaw(FormationParams(slots=slots, leader_id="lead", geometry_tau_s=2.0, course_rate_tau_s=2.0,
+                                           ff_tau_s=2.0, course_accel_tau_s=tau_a, k_slot=0.7, max_accel_mps2=10.0), "me")
+        course_err, vel_err = [], []
+        for k in range(6000):  # 120 s at 50 Hz
+            t = 0.02 * k
+            chi, w = course_and_rate(t)
+            R = formation_rotation(chi)
+            v_me = velocity(slots["me"], chi, w)
+            table = {p: _rel(p, R @ (np.asarray(slots[p]) - slots["me"]), w=velocity(slots[p], chi, w) - v_me, t=t) for p in "ab"}
+            v_cmd = law.velocity_command(t, _est((0, 0, -100.0), v_me, t=t), table)
+            if t >= 20.0:
+                course_err.append(math.remainder(law.course_lead - chi, 2 * math.pi))
+                vel_err.append(float(np.linalg.norm((v_cmd - v_me)[:2])))
+        rms[tau_a] = (math.degrees(math.sqrt(np.mean(np.square(course_err)))), math.sqrt(np.mean(np.square(vel_err))))
+    assert rms[0.0][0] > 0.04 and rms[0.0][1] > 0.15  # degrees, m/s: the lag this removes is there
+    assert rms[2.0][0] < 0.4 * rms[0.0][0]
+    assert rms[2.0][1] < 0.75 * rms[0.0][1]
+
+
+def test_course_acceleration_is_held_at_zero_below_the_full_speed():
+    """Below course_full_speed_mps the course's second difference is the start-up's wander, not
+    a turn: the estimated acceleration stays 0 while the layout turns at a growing rate."""
+    from testbench.control.formation import formation_rotation
+
+    slots = {"lead": (0.0, 0.0, 0.0), "a": (-86.6, -50.0, 0.0), "b": (-86.6, 50.0, 0.0), "me": (-173.2, 0.0, 0.0)}
+    alpha = math.radians(0.05)
+    for speed, expect_zero in ((1.5, True), (4.0, False)):
+        law = FormationLaw(FormationParams(slots=slots, leader_id="lead", geometry_tau_s=2.0, course_rate_tau_s=2.0,
+                                           course_accel_tau_s=2.0, course_full_speed_mps=3.0), "me")
+        for k in range(1000):  # 20 s at 50 Hz, the layout's rate growing at alpha
+            t = 0.02 * k
+            R = formation_rotation(0.5 * alpha * t * t)
+            vel = (speed, 0.0, 0.0)
+            table = {p: _rel(p, R @ (np.asarray(slots[p]) - slots["me"]), t=t) for p in ("lead", "a", "b")}
+            law.velocity_command(t, _est((0, 0, -100.0), vel, t=t), table)
+        if expect_zero:
+            assert law.course_accel_rps2 == 0.0
+        else:
+            assert law.course_accel_rps2 == pytest.approx(alpha, rel=0.2)
