@@ -4,4 +4,4 @@ motor mixer, and formation followers (rigid slots, or a column along the path of
 ahead). Importing this package registers the controllers and
 missions."""
 
-from testbench.control import fixed_wing, formation, missions, multirotor, trail  # noqa: F401  (registration)
+from testbench.control import fixed_wing, formation, formation_followers, missions, multirotor, trail  # noqa: F401  (registration)

@@ -28,7 +28,8 @@ from typing import Any
 import numpy as np
 import pydantic
 
-from testbench.control.formation import FollowerLaw, FollowerParams, FormationFollower, add_repulsion
+from testbench.control.formation import FollowerLaw, FollowerParams, add_repulsion
+from testbench.control.formation_followers import FormationFollower
 from testbench.core.errors import InputError
 from testbench.core.messages import NavEstimate
 from testbench.core.registry import register

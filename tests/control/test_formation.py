@@ -7,7 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from testbench.control.formation import FormationFollower, FormationLaw, FormationParams, formation_errors
+from testbench.control.formation import FormationLaw, FormationParams, formation_errors
+from testbench.control.formation_followers import FormationFollower
 from testbench.core.interfaces import BuildContext, GeodeticOrigin
 from testbench.core.messages import NavEstimate
 from testbench.core.rotations import euler_to_quat
@@ -141,7 +142,7 @@ def test_fixed_wing_follower_converges_on_a_straight_leg():
     pytest.importorskip("jsbsim")
     from testbench.control import evaluate as ev
     from testbench.control.fixed_wing import FixedWingController
-    from testbench.control.formation import FixedWingFormationFollower
+    from testbench.control.formation_followers import FixedWingFormationFollower
     from testbench.dynamics.jsbsim_adapter import InitialCondition
 
     slots = {"lead": (0.0, 0.0, 0.0), "f1": (-60.0, -40.0, 0.0)}
