@@ -56,7 +56,7 @@ class LocalFrame:
                              "such as EPSG:32610 or EPSG:4326") from None
         if not (self.crs.is_projected or self.crs.is_geographic):
             raise InputError(f"{where}: unusable CRS '{self.crs.name}' (neither projected nor "
-                             "geographic); reproject it, e.g. gdal_warp -t_srs EPSG:XXXX")
+                             "geographic); reproject it, e.g. gdalwarp -t_srs EPSG:XXXX in.tif out.tif")
         try:
             self._to_map = pyproj.Transformer.from_crs(_WGS84_LONLAT, self.crs, always_xy=True)
             self._to_ll = pyproj.Transformer.from_crs(self.crs, _WGS84_LONLAT, always_xy=True)
