@@ -6,8 +6,10 @@ constant pos_corr_s); velocity error white. Per axis (N, E, D) sigmas.
 Denial windows (scenario time, start_s <= t < end_s):
 - jamming: no fix at all;
 - degraded: every sigma (true error and the receiver's claim) times sigma_scale;
-- spoofing: the fix is dragged by offset = offset_ned_m + drift_ned_mps (t - start_s) and
-  the velocity by drift_ned_mps; the receiver reports its usual sigmas (it does not know).
+- spoofing: the fix is dragged off by offset_ned_m plus a drift whose velocity is
+  drift_ned_mps, at once, or (accel_mps2) ramped up at that acceleration as a carry-off attack
+  does so that the receiver's tracking loops and the navigator's velocity gate see no step
+  (`spoof_offset`); the receiver reports its usual sigmas (it does not know).
 Latency: a fix valid at t is delivered at the first sample tick at or after t + latency_s.
 """
 
@@ -41,11 +43,35 @@ class Degraded(ParamsModel):
 
 
 class Spoofing(ParamsModel):
+    """A spoofer that has captured the receiver at start_s (its signals aligned with the true
+    ones) and drags its fix: offset_ned_m (m) at once, plus a drift at drift_ned_mps (NED m/s),
+    reached at once (accel_mps2 None) or ramped up at accel_mps2 (m/s^2, the carry-off of
+    Humphreys et al. 2008 and Kerns et al. 2014: slow enough that neither the receiver's
+    tracking loops nor a velocity gate see a step)."""
+
     type: Literal["spoofing"]
     start_s: float
     end_s: float = math.inf
     drift_ned_mps: tuple[float, float, float] = (1.0, 0.0, 0.0)
     offset_ned_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    accel_mps2: float | None = Field(None, gt=0)
+
+
+def spoof_offset(w: Spoofing, t_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """The spoofer's drag at time t_s (>= w.start_s): (position offset (3,) NED m, velocity
+    offset (3,) NED m/s). With accel_mps2 the drift speed grows as accel tau (tau = t_s -
+    start_s) until it reaches |drift_ned_mps| at tau_r = |drift| / accel, so the offset is
+    accel tau^2 / 2 along the drift until then and |drift| (tau - tau_r / 2) after."""
+    drift = np.asarray(w.drift_ned_mps, float)
+    tau = max(t_s - w.start_s, 0.0)
+    speed = float(np.linalg.norm(drift))
+    if w.accel_mps2 is None or speed == 0.0:
+        return np.asarray(w.offset_ned_m, float) + drift * tau, drift
+    u = drift / speed
+    tau_r = speed / w.accel_mps2
+    if tau < tau_r:
+        return np.asarray(w.offset_ned_m, float) + u * (0.5 * w.accel_mps2 * tau * tau), u * (w.accel_mps2 * tau)
+    return np.asarray(w.offset_ned_m, float) + u * (speed * (tau - 0.5 * tau_r)), drift
 
 
 DenialWindow = Annotated[Union[Jamming, Degraded, Spoofing], Field(discriminator="type")]
@@ -101,9 +127,9 @@ class Gnss(CachedSensor):
             vel_err = scale * p.vel_sigma_mps * z[6:9]
             for w in active:
                 if w.type == "spoofing":
-                    drift = np.asarray(w.drift_ned_mps, float)
-                    err = err + np.asarray(w.offset_ned_m, float) + drift * (t - w.start_s)
-                    vel_err = vel_err + drift
+                    d_pos, d_vel = spoof_offset(w, t)
+                    err = err + d_pos
+                    vel_err = vel_err + d_vel
             lat, lon, alt = ned_to_geodetic(
                 np.asarray(truth.pos_ned_m, float) + err, self.origin.lat_rad, self.origin.lon_rad, self.origin.alt_m
             )

@@ -9,7 +9,7 @@ from testbench.core.messages import StateObservation
 from testbench.sensors.airspeed import Airspeed, AirspeedParams
 from testbench.sensors.barometer import Barometer, BarometerParams, isa_altitude_m, isa_pressure_pa
 from testbench.sensors.fakes import ORIGIN, FakeWorld, make_truth
-from testbench.sensors.gnss import Gnss, GnssParams
+from testbench.sensors.gnss import Gnss, GnssParams, Spoofing, spoof_offset
 from testbench.sensors.ideal_state import IdealState, IdealStateParams
 from testbench.sensors.magnetometer import Magnetometer, MagnetometerParams
 
@@ -101,6 +101,32 @@ def test_gnss_jamming_degraded_spoofing():
     slope = np.polyfit(t_s - 100.0, err_n, 1)[0]
     assert slope == pytest.approx(1.0, abs=0.1)  # a growing 1 m/s offset
     assert all(o[3].vel_ned_mps[0] == pytest.approx(11.0, abs=0.5) for o in out if o[1] >= 100.0)
+
+
+def test_spoof_carry_off_ramps_the_drift_without_a_step():
+    """A carry-off (accel_mps2) starts with no offset and no velocity step, reaches the drift
+    speed at |drift| / accel and goes on at it; the offset is continuous there."""
+    w = Spoofing(type="spoofing", start_s=10.0, drift_ned_mps=(0.0, 3.0, 0.0), accel_mps2=0.05)
+    pos, vel = spoof_offset(w, 10.0)
+    np.testing.assert_allclose([pos, vel], 0.0)
+    pos, vel = spoof_offset(w, 30.0)  # 20 s in: 1 m/s, 10 m
+    np.testing.assert_allclose(pos, [0.0, 10.0, 0.0])
+    np.testing.assert_allclose(vel, [0.0, 1.0, 0.0])
+    before, _ = spoof_offset(w, 10.0 + 60.0 - 1e-9)
+    after, vel = spoof_offset(w, 10.0 + 60.0 + 1e-9)
+    np.testing.assert_allclose(before, after, atol=1e-6)  # 90 m at the end of the ramp
+    np.testing.assert_allclose(after, [0.0, 90.0, 0.0], atol=1e-6)
+    np.testing.assert_allclose(vel, [0.0, 3.0, 0.0])
+    np.testing.assert_allclose(spoof_offset(w, 80.0)[0], [0.0, 120.0, 0.0])
+    step = Spoofing(type="spoofing", start_s=10.0, drift_ned_mps=(1.0, 0.0, 0.0), offset_ned_m=(0.0, 5.0, 0.0))
+    pos, vel = spoof_offset(step, 12.0)
+    np.testing.assert_allclose(pos, [2.0, 5.0, 0.0])
+    np.testing.assert_allclose(vel, [1.0, 0.0, 0.0])
+    p = GnssParams(rate_hz=5.0, pos_sigma_ne_m=0.0, pos_sigma_d_m=0.0, pos_corr_sigma_m=0.0, vel_sigma_mps=0.0,
+                   denial=[w.model_dump()])
+    fixes = {round(o[1], 6): o for o in _gnss_run(p, duration_s=40.0)}
+    np.testing.assert_allclose(fixes[30.0][2], [0.0, 10.0, 0.0], atol=1e-6)  # the receiver's fix, dragged
+    np.testing.assert_allclose(fixes[30.0][3].vel_ned_mps, [10.0, 1.0, 0.0], atol=1e-9)
 
 
 def test_gnss_latency():
