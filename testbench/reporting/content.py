@@ -21,6 +21,8 @@ KEY_METRICS = (
     "nav.horizontal_error_m.p95", "nav.horizontal_error_m.max", "nav.horizontal_error_m.cep50",
     "nav.horizontal_error_m.cep95", "nav.horizontal_error_pct_agl.mean",
     "nav.denied.horizontal_error_m.mean", "nav.denied.horizontal_error_m.max", "nav.denied.duration_s",
+    "nav.spoofed.horizontal_error_m.mean", "nav.spoofed.horizontal_error_m.max", "nav.spoofed.gnss_accept_rate",
+    "nav.spoofed.gnss_captured_s",
     "nav.nees.position.mean", "nav.nees.position.frac_in_95",
     "control.altitude_error_m.rms", "control.cross_track_error_m.rms", "control.airspeed_error_mps.rms",
     "control.bank_max_deg",
@@ -62,6 +64,9 @@ def _config_table(record: RunRecord) -> Table:
         rows.append([f"vehicle {v.get('id')}", f"{v.get('aircraft', '?')} ({v.get('kind', '?')})"])
     for vid, windows in (info.get("gnss_denied_windows") or {}).items():
         rows.append([f"GNSS denied {vid}", ", ".join(f"{a:g}–{b:g} s" for a, b in windows) or "never"])
+    for vid, windows in (info.get("gnss_spoofed_windows") or {}).items():
+        if windows:  # listed only where a spoofer acts
+            rows.append([f"GNSS spoofed {vid}", ", ".join(f"{a:g}–{b:g} s" for a, b in windows)])
     ph = record.phases
     rows.append(["turning phase", f"|bank| > {ph['turn_bank_deg']:g}° or |turn rate| > {ph['turn_rate_deg_s']:g}°/s"])
     if "same_raster" in info:

@@ -20,6 +20,7 @@ from testbench.scoring.record_io import RunRecord, column
 log = logging.getLogger(__name__)
 
 DENIED_COLOR = "#f4a582"
+SPOOFED_COLOR = "#b2abd2"  # GNSS spoofed: fixes still come, dragged off by a spoofer
 MAX_DETAILED_VEHICLES = 4  # beyond this, per-vehicle panels are merged into one overlay
 
 
@@ -77,10 +78,16 @@ def denied_spans(record: RunRecord, vehicle_id: str) -> list[tuple[float, float]
     return [(float(a), float(b)) for a, b in windows]
 
 
-def shade_spans(ax, spans: list[tuple[float, float]], label: str = "GNSS denied") -> None:
+def spoofed_spans(record: RunRecord, vehicle_id: str) -> list[tuple[float, float]]:
+    """GNSS-spoofed time spans of one vehicle (run.json gnss_spoofed_windows)."""
+    windows = (record.run_info.get("gnss_spoofed_windows") or {}).get(vehicle_id, [])
+    return [(float(a), float(b)) for a, b in windows]
+
+
+def shade_spans(ax, spans: list[tuple[float, float]], label: str = "GNSS denied", color: str = DENIED_COLOR) -> None:
     """Shade time spans on an axis; labels only the first so the legend shows it once."""
     for i, (a, b) in enumerate(spans):
-        ax.axvspan(a, b, color=DENIED_COLOR, alpha=0.35, lw=0, label=label if i == 0 else None)
+        ax.axvspan(a, b, color=color, alpha=0.35, lw=0, label=label if i == 0 else None)
 
 
 def map_preview(record: RunRecord) -> tuple[np.ndarray, tuple[float, float, float, float]] | None:

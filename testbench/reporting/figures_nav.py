@@ -7,12 +7,14 @@ from scipy import stats as sps
 
 from testbench.reporting.figures_common import (
     MAX_DETAILED_VEHICLES,
+    SPOOFED_COLOR,
     denied_spans,
     ecdf,
     legend_or_note,
     map_preview,
     new_figure,
     shade_spans,
+    spoofed_spans,
     vehicle_colors,
 )
 from testbench.reporting.model import FigureItem
@@ -74,11 +76,12 @@ def _error_panels(record: RunRecord, vid: str) -> FigureItem | None:
     # Largest eigenvalue of the 2x2 horizontal covariance: the worst-direction sigma^2.
     tr, det = sn**2 + se**2, sn**2 * se**2 - cne**2
     lam_max = 0.5 * tr + np.sqrt(np.maximum(0.25 * tr * tr - det, 0.0))
-    spans = denied_spans(record, vid)
+    spans, spoofed = denied_spans(record, vid), spoofed_spans(record, vid)
     fig = new_figure(9.0, 7.0)
     axes = fig.subplots(3, 1, sharex=True)
     for ax, err, sig, name in ((axes[0], e[:, 0], sn, "north"), (axes[1], e[:, 1], se, "east")):
         shade_spans(ax, spans)
+        shade_spans(ax, spoofed, label="GNSS spoofed", color=SPOOFED_COLOR)
         ax.plot(t, err, lw=1.0, color="C0", label=f"{name} error")
         if np.isfinite(sig).any():
             ax.fill_between(t, -3 * sig, 3 * sig, color="C0", alpha=0.15, lw=0, label="±3σ (reported)")
@@ -87,6 +90,7 @@ def _error_panels(record: RunRecord, vid: str) -> FigureItem | None:
         ax.legend(fontsize=7, loc="upper left")
     ax = axes[2]
     shade_spans(ax, spans)
+    shade_spans(ax, spoofed, label="GNSS spoofed", color=SPOOFED_COLOR)
     ax.plot(t, np.hypot(e[:, 0], e[:, 1]), lw=1.0, color="C3", label="horizontal error")
     if np.isfinite(lam_max).any():
         ax.plot(t, K_2D_3SIGMA * np.sqrt(lam_max), "k--", lw=1.0, label="99.73 % bound (2-D 3σ)")
@@ -98,7 +102,7 @@ def _error_panels(record: RunRecord, vid: str) -> FigureItem | None:
         f"Navigation error vs time: {vid}",
         "Estimate minus truth. North and east with the navigator's ±3σ; horizontal error with the radius "
         f"that holds it with 99.73 % probability ({K_2D_3SIGMA:.2f} × the largest horizontal σ). "
-        "Shaded: GNSS denied.",
+        "Shaded: GNSS denied" + (" (orange) and spoofed (violet)." if spoofed else "."),
         fig,
     )
 

@@ -8,13 +8,15 @@ sigmas. Rows whose covariance is missing or not positive definite are left out o
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pandas as pd
 
 from testbench.core.rotations import wrap_pi
 from testbench.scoring.phases import telemetry_turning
 from testbench.scoring.record_io import RunRecord, column
-from testbench.scoring.result import NavMetrics, NavSubset, NisStats
+from testbench.scoring.result import NavMetrics, NavSubset, NisStats, SpoofedNav
 from testbench.scoring.stats import ChiSquareStats, chi_square_stats, error_stats
 
 MIN_AGL_FOR_PCT_M = 1.0  # below this the vehicle is on the ground: % of AGL is meaningless
@@ -150,6 +152,50 @@ def _subset(e3: np.ndarray, eh: np.ndarray, pct: np.ndarray, dur: np.ndarray, ma
     )
 
 
+def _windows_mask(record: RunRecord, key: str) -> np.ndarray:
+    """True on telemetry rows inside run.json's per-vehicle windows `key` (vehicle id ->
+    [[start_s, end_s], ...]), shape (n,)."""
+    tel = record.telemetry
+    mask = np.zeros(len(tel), dtype=bool)
+    t = column(tel, "t_s")
+    ids = tel["vehicle_id"].to_numpy()
+    for vid, windows in (record.run_info.get(key) or {}).items():
+        for start, end in windows:
+            mask |= (ids == str(vid)) & (t >= float(start)) & (t <= float(end))
+    return mask
+
+
+def spoofed_subset(record: RunRecord, e3: np.ndarray, eh: np.ndarray, pct: np.ndarray, dur: np.ndarray,
+                   valid: np.ndarray) -> SpoofedNav | None:
+    """SpoofedNav over the rows inside run.json gnss_spoofed_windows (None without such rows):
+    the error figures as for any subset, and from events/corrections.parquet the GNSS fixes
+    of those windows: how many the filter fused (kind "gnss" accepted, or "gnss:reset") and
+    how long after each window's start it fused the last of them."""
+    base = _subset(e3, eh, pct, dur, _windows_mask(record, "gnss_spoofed_windows") & valid)
+    if base is None:
+        return None
+    cor = record.event("corrections")
+    fused: list[bool] = []
+    captured_s: list[float] = []
+    if cor is not None and len(cor):
+        kinds = cor["kind"].astype(str).to_numpy()
+        is_gnss = (kinds == "gnss") | (kinds == "gnss:reset")
+        took = is_gnss & (column(cor, "accepted", dtype=bool).astype(bool) | (kinds == "gnss:reset"))
+        t = column(cor, "t_s")
+        ids = cor["vehicle_id"].astype(str).to_numpy()
+        for vid, windows in (record.run_info.get("gnss_spoofed_windows") or {}).items():
+            for start, end in windows:
+                inside = is_gnss & (ids == str(vid)) & (t >= float(start)) & (t <= float(end))
+                if not inside.any():
+                    continue
+                fused.extend(took[inside].tolist())
+                taken_t = t[inside & took]
+                captured_s.append(float(taken_t.max()) - float(start) if len(taken_t) else 0.0)
+    return SpoofedNav(**{f.name: getattr(base, f.name) for f in dataclasses.fields(base)},
+                      gnss_accept_rate=float(np.mean(fused)) if fused else None,
+                      gnss_captured_s=max(captured_s) if captured_s else None)
+
+
 def denied_mask(record: RunRecord) -> np.ndarray:
     """True on telemetry rows where GNSS was not available to the navigator, shape (n,).
 
@@ -159,13 +205,7 @@ def denied_mask(record: RunRecord) -> np.ndarray:
     tel = record.telemetry
     if "gnss_available" in tel.columns:
         return ~tel["gnss_available"].to_numpy().astype(bool)
-    mask = np.zeros(len(tel), dtype=bool)
-    t = column(tel, "t_s")
-    ids = tel["vehicle_id"].to_numpy()
-    for vid, windows in (record.run_info.get("gnss_denied_windows") or {}).items():
-        for start, end in windows:
-            mask |= (ids == str(vid)) & (t >= float(start)) & (t <= float(end))
-    return mask
+    return _windows_mask(record, "gnss_denied_windows")
 
 
 def compute_nis(record: RunRecord) -> dict[str, NisStats]:
@@ -215,6 +255,7 @@ def compute_nav(record: RunRecord) -> NavMetrics | None:
         vertical_error_m=error_stats(e3[:, 2]),
         horizontal_error_pct_agl=error_stats(pct),
         denied=_subset(e3, eh, pct, dur, denied_mask(record) & valid),
+        spoofed=spoofed_subset(record, e3, eh, pct, dur, valid),
         smooth=_subset(e3, eh, pct, dur, ~turning & valid),
         turning=_subset(e3, eh, pct, dur, turning & valid),
         nees=nees,

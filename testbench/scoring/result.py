@@ -79,6 +79,23 @@ class NavSubset(_Section):
 
 
 @dataclass(frozen=True)
+class SpoofedNav(NavSubset):
+    """Navigation error while a vehicle's GNSS receiver was spoofed (run.json
+    gnss_spoofed_windows: its fixes dragged off by a spoofer, sensors.gnss Spoofing), and how
+    its navigator took those fixes.
+
+    gnss_accept_rate: share of the GNSS fixes in those windows that the filter fused (passed
+    its gate, or reset to: kind "gnss:reset"); gnss_captured_s: the longest, over vehicles and
+    windows, time from a window's start to the last fix in it that the filter fused (how long
+    the spoofer held the navigator: near 0 when its first dragged fixes were refused, the
+    window's length when it held it to the end). None where no GNSS fix was attempted.
+    """
+
+    gnss_accept_rate: float | None = None
+    gnss_captured_s: float | None = None
+
+
+@dataclass(frozen=True)
 class NisStats(_Section):
     """NIS of one correction kind: chi-square consistency plus acceptance.
 
@@ -106,6 +123,8 @@ class NavMetrics(_Section):
     vertical_error_m: |down error| (m); horizontal_error_pct_agl: horizontal error as a
     percentage of the true height above ground (rows with AGL > 1 m);
     denied / smooth / turning: the same over GNSS-denied rows and per flight phase;
+    spoofed: the same over the rows inside GNSS spoofing windows, with the share of the
+    spoofed fixes the filter took (SpoofedNav);
     nees: "position" (3 dof, with the recorded north-east covariance), "velocity" and
     "attitude" (3 dof, diagonal sigmas) -> ChiSquareStats; nis: correction kind -> NisStats;
     lost_at_s: when the navigator was lost (metrics_nav.lost_at_s: its position error stayed
@@ -117,6 +136,7 @@ class NavMetrics(_Section):
     vertical_error_m: ErrorStats | None = None
     horizontal_error_pct_agl: ErrorStats | None = None
     denied: NavSubset | None = None
+    spoofed: SpoofedNav | None = None
     smooth: NavSubset | None = None
     turning: NavSubset | None = None
     nees: Mapping[str, ChiSquareStats] = field(default_factory=dict)

@@ -201,6 +201,7 @@ def _run_info(loaded: LoadedScenario, engine: Engine, world: RunWorld, result: E
         "world": scn.world.model_dump(exclude={"origin"}),
         "thresholds": {k: v.model_dump(exclude_none=True) for k, v in scn.thresholds.items()},
         "gnss_denied_windows": {v.id: _gnss_denied_windows(v.spec, result.sim_time_s) for v in engine.vehicles},
+        "gnss_spoofed_windows": {v.id: _gnss_denial_windows(v.spec, result.sim_time_s, "spoofing") for v in engine.vehicles},
         "aid_counters": _aid_counters(engine),
         # The code, library builds and CPU features the record's bits depend on (provenance).
         "environment": environment(),
@@ -224,14 +225,19 @@ def _gnss_denied_windows(vehicle_spec, sim_time_s: float) -> list[list[float]]:
     """[[start_s, end_s], ...] when the vehicle had no GNSS fix by configuration: its receivers'
     jamming windows (clipped to the run), or the whole run without a GNSS receiver. Degraded
     and spoofed windows still deliver fixes and are not listed."""
+    if not any(s.type == "gnss" for s in vehicle_spec.sensors):
+        return [[0.0, float(sim_time_s)]]
+    return _gnss_denial_windows(vehicle_spec, sim_time_s, "jamming")
+
+
+def _gnss_denial_windows(vehicle_spec, sim_time_s: float, kind: str) -> list[list[float]]:
+    """[[start_s, end_s], ...] of the vehicle's GNSS receivers' denial windows of one kind
+    ("jamming", "spoofing", "degraded"), clipped to the run, sorted."""
     from testbench.sensors.gnss import GnssParams
 
-    receivers = [s for s in vehicle_spec.sensors if s.type == "gnss"]
-    if not receivers:
-        return [[0.0, float(sim_time_s)]]
     windows = []
-    for spec in receivers:
+    for spec in (s for s in vehicle_spec.sensors if s.type == "gnss"):
         for w in GnssParams.model_validate(spec.params).denial:
-            if w.type == "jamming" and w.start_s < sim_time_s:
+            if w.type == kind and w.start_s < sim_time_s:
                 windows.append([float(w.start_s), float(min(w.end_s, sim_time_s))])
     return sorted(windows)

@@ -2,7 +2,7 @@
 
 
 from testbench.config.schema import Vehicle
-from testbench.sim.runner import _gnss_denied_windows
+from testbench.sim.runner import _gnss_denial_windows, _gnss_denied_windows
 
 
 def _vehicle(sensors):
@@ -19,6 +19,7 @@ def test_gnss_denied_windows_from_jamming_only():
         {"type": "jamming", "start_s": 500.0},
     ]}}])
     assert _gnss_denied_windows(v, 300.0) == [[30.0, 40.0], [60.0, 300.0]]
+    assert _gnss_denial_windows(v, 300.0, "spoofing") == [[10.0, 20.0]]  # run.json gnss_spoofed_windows
 
 
 def test_no_receiver_means_denied_throughout():

@@ -43,6 +43,28 @@ def test_denied_subset_from_gnss_column_and_from_windows():
     assert nav2.denied.horizontal_error_m.mean == pytest.approx(10.0)
 
 
+def test_spoofed_subset_and_how_long_the_spoofer_held_the_filter():
+    """Rows inside gnss_spoofed_windows form nav.spoofed; its GNSS fixes give the share the
+    filter fused (gate passed, or a reset to them) and the time from the window's start to the
+    last fused one."""
+    n = 100  # 0-9.9 s
+    tel = straight_telemetry(n=n, err_ned=(0.0, 0.0, 0.0))
+    tel["nav_east_m"] = tel["truth_east_m"] + np.where(tel["t_s"] >= 4.0, 2.0, 0.5)
+    t_fix = np.arange(0.0, 10.0, 1.0)
+    cor = pd.DataFrame({"t_s": t_fix, "vehicle_id": "a", "kind": "gnss", "dim": 6, "nis": 1.0,
+                        "accepted": t_fix < 6.0})  # the spoofer (from 4 s) held it until 5 s
+    cor.loc[cor.t_s == 7.0, ["kind", "accepted"]] = ["gnss:reset", False]  # a reset to it at 7 s
+    cor = pd.concat([cor, pd.DataFrame({"t_s": [8.0], "vehicle_id": "a", "kind": "baro", "dim": 1, "nis": 1.0,
+                                        "accepted": [True]})])
+    nav = compute_nav(record_of(tel, events={"corrections": cor}, gnss_spoofed_windows={"a": [[4.0, 9.9]]}))
+    s = nav.spoofed
+    assert s.horizontal_error_m.mean == pytest.approx(2.0) and s.duration_s == pytest.approx(6.0)
+    assert s.gnss_accept_rate == pytest.approx(3 / 6)  # 4, 5 and the reset at 7 of 4-9
+    assert s.gnss_captured_s == pytest.approx(3.0)
+    assert "spoofed" in nav.to_dict() and nav.to_dict()["spoofed"]["gnss_captured_s"] == pytest.approx(3.0)
+    assert compute_nav(record_of(tel, events={"corrections": cor})).spoofed is None
+
+
 def test_position_nees_with_correlated_covariance(rng):
     n = 40_000
     P_h = np.array([[4.0, 1.8], [1.8, 2.25]])
