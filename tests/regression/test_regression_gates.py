@@ -1,8 +1,9 @@
 """Regression gates: short versions of the shipped scenarios must pass their own `thresholds:`.
 
 Each case flies a scenario through the real command line (in-process), shortened only as far as
-keeps every phase its thresholds look at (the scene-matching flights keep GNSS denial from 60 s
-and their first 30 deg turn at about 96-111 s; the control studies fly in full), and asserts
+keeps every phase its thresholds look at (the scene-matching flights keep GNSS denial, or the
+spoofer, from 60 s and their first 30 deg turn at about 96-111 s; the control studies fly in
+full), and asserts
 exit status 0 with every threshold in `metrics.json` passed. A renamed or missing metric fails
 here too (thresholds.py treats a missing key as a failure).
 
@@ -43,6 +44,7 @@ GATED = {
     "multirotor_waypoints": None,
     "ins_only_800m": 120.0,
     "paper_ismn_800m": 120.0,
+    "paper_ismn_spoofed": 120.0,
     "naip_ismn_800m": 120.0,
     "lowalt_ismn_150m": 120.0,
     "paper_swarm_relnav": 15.0,
