@@ -8,7 +8,15 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from testbench.reporting.figures_common import denied_spans, legend_or_note, new_figure, shade_spans, vehicle_colors
+from testbench.reporting.figures_common import (
+    SPOOFED_COLOR,
+    denied_spans,
+    legend_or_note,
+    new_figure,
+    shade_spans,
+    spoofed_spans,
+    vehicle_colors,
+)
 from testbench.reporting.model import FigureItem
 from testbench.scoring.metrics_events import ismn_fix_errors, pair_key, relnav_errors_m
 from testbench.scoring.phases import event_turning
@@ -201,11 +209,13 @@ def nis_figure(record: RunRecord) -> FigureItem | None:
     fig = new_figure(10.0, 1.9 * len(kinds) + 0.8)
     axes = fig.subplots(len(kinds), 1, sharex=True, squeeze=False)[:, 0]
     spans = denied_spans(record, record.vehicle_ids[0]) if record.vehicle_ids else []
+    spoofed = spoofed_spans(record, record.vehicle_ids[0]) if record.vehicle_ids else []
     for ax, kind in zip(axes, kinds):
         sub = cor[cor["kind"].astype(str) == kind]
         t, nis, dim = column(sub, "t_s"), column(sub, "nis"), column(sub, "dim")
         acc = column(sub, "accepted", dtype=bool).astype(bool)
         shade_spans(ax, spans)
+        shade_spans(ax, spoofed, label="GNSS spoofed", color=SPOOFED_COLOR)
         with np.errstate(divide="ignore", invalid="ignore"):
             y = nis / dim
         ax.plot(t[acc], y[acc], ".", ms=2.5, color="C0", label="accepted")
@@ -222,6 +232,7 @@ def nis_figure(record: RunRecord) -> FigureItem | None:
     return FigureItem(
         "Correction consistency (NIS)",
         "Normalised innovation squared divided by the measurement dimension, per correction kind and vehicle "
-        "(log scale); the band holds 95 % of samples of a consistent filter.",
+        "(log scale); the band holds 95 % of samples of a consistent filter."
+        + (" Violet: GNSS spoofed (its fixes dragged off; rejected ones marked x)." if spoofed else ""),
         fig,
     )
