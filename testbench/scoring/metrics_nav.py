@@ -169,8 +169,9 @@ def spoofed_subset(record: RunRecord, e3: np.ndarray, eh: np.ndarray, pct: np.nd
                    valid: np.ndarray) -> SpoofedNav | None:
     """SpoofedNav over the rows inside run.json gnss_spoofed_windows (None without such rows):
     the error figures as for any subset, and from events/corrections.parquet the GNSS fixes
-    of those windows: how many the filter fused (kind "gnss" accepted, or "gnss:reset") and
-    how long after each window's start it fused the last of them."""
+    of those windows (kinds "gnss", "gnss:reset", and "gnss:excluded" while the spoofing monitor
+    held GNSS out): how many the filter fused ("gnss" accepted, or "gnss:reset") and how long
+    after each window's start it fused the last of them."""
     base = _subset(e3, eh, pct, dur, _windows_mask(record, "gnss_spoofed_windows") & valid)
     if base is None:
         return None
@@ -179,7 +180,7 @@ def spoofed_subset(record: RunRecord, e3: np.ndarray, eh: np.ndarray, pct: np.nd
     captured_s: list[float] = []
     if cor is not None and len(cor):
         kinds = cor["kind"].astype(str).to_numpy()
-        is_gnss = (kinds == "gnss") | (kinds == "gnss:reset")
+        is_gnss = (kinds == "gnss") | (kinds == "gnss:reset") | (kinds == "gnss:excluded")
         took = is_gnss & (column(cor, "accepted", dtype=bool).astype(bool) | (kinds == "gnss:reset"))
         t = column(cor, "t_s")
         ids = cor["vehicle_id"].astype(str).to_numpy()

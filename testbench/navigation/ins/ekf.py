@@ -310,6 +310,18 @@ class ErrorStateEKF:
         return CorrectionInfo(t_s=float(t_s), kind=kind, innovation=y, innovation_cov=S,
                               nis=nis, accepted=accepted)
 
+    def check(self, kind: str, t_s: float, y, H, R) -> CorrectionInfo:
+        """The innovation, its covariance and NIS of a measurement (y (m,), H (m, n), R (m, m)),
+        without fusing it: accepted=False, the state untouched (a source held out, e.g. GNSS
+        while the spoofing monitor alarms, still shows in the corrections how far off it is)."""
+        self.flush()
+        y = np.atleast_1d(np.asarray(y, float))
+        H = np.atleast_2d(np.asarray(H, float))
+        S = H @ self.P @ H.T + np.atleast_2d(np.asarray(R, float))
+        S = 0.5 * (S + S.T)
+        nis = float(y @ np.linalg.solve(S, y))
+        return CorrectionInfo(t_s=float(t_s), kind=kind, innovation=y, innovation_cov=S, nis=nis, accepted=False)
+
     def reset_position(self, kind: str, t_s: float, y, H, R, elapsed_s: float) -> CorrectionInfo:
         """Re-acquire the position (and velocity) from a measurement the gate keeps rejecting,
         after elapsed_s seconds without an accepted one: a position fix (residual y (3,) in

@@ -27,10 +27,12 @@ from testbench.core.units import DEG_TO_RAD, STANDARD_GRAVITY_MPS2
 from testbench.navigation.fix_quality import appearance_gain
 from testbench.navigation.ins import measurements as meas
 from testbench.navigation.ins.consistency import error_state
-from testbench.navigation.ins.ekf import ErrorStateEKF
+from testbench.navigation.ins.ekf import ErrorStateEKF, chi2_threshold
 from testbench.navigation.ins.error_model import IA, IBA, IBB, IBG, IDS, IFX, IGN, IP, IV, IW
+from testbench.navigation.ins.gnss_monitor import GnssInertialMonitor
 from testbench.navigation.ins.imu_noise import imu_noise_from_datasheet, preset_datasheet, preset_names, preset_scale_error
 from testbench.navigation.ins.magnetic import OnboardMagneticModel
+from testbench.navigation.ins.rollback import RollbackBuffer
 from testbench.navigation.ins.settings import InsEkfParams
 
 log = logging.getLogger(__name__)
@@ -101,6 +103,9 @@ class InsEkfNavigator(Navigator):
         self._last_fix_ok_t_s: float | None = None  # last accepted position fix (None: none yet)
         self._last_gnss_ok_t_s: float | None = None  # last accepted GNSS fix (None: none yet)
         self._last_baro_ok_t_s: float | None = None  # last accepted barometer sample
+        self.gnss_monitor = None if params.gnss_monitor is None else GnssInertialMonitor(params.gnss_monitor)
+        self._rollback = None if params.gnss_monitor is None else RollbackBuffer(params.gnss_monitor.rollback_s + 5.0)
+        self._replaying = False
         d = params.drag_aiding
         self._drag_mu_per_s = None if d is None else (d.coefficient_per_s or meas.momentum_drag_per_s(aircraft or {}))
         self._drag_acc = [0.0, 0.0, 0.0, 0.0, 0]  # sums over the interval: f_bx, f_by, v_bx, v_by; count
@@ -175,7 +180,14 @@ class InsEkfNavigator(Navigator):
     def predict(self, imu: ImuSample) -> None:
         self._require_init()
         self._estimate = None
-        self.ekf.propagate(float(imu.t_s), imu.omega_ib_b_rps, imu.f_ib_b_mps2)
+        if self.gnss_monitor is None or self._replaying:
+            self.ekf.propagate(float(imu.t_s), imu.omega_ib_b_rps, imu.f_ib_b_mps2)
+        else:  # the monitor sums the INS's own velocity steps (no correction's)
+            self._rollback.record(imu)
+            v0 = self.ekf.ins.vel
+            self.ekf.propagate(float(imu.t_s), imu.omega_ib_b_rps, imu.f_ib_b_mps2)
+            v1 = self.ekf.ins.vel
+            self.gnss_monitor.add_inertial((v1[0] - v0[0], v1[1] - v0[1], v1[2] - v0[2]))
         if self._drag_mu_per_s is not None:
             self._accumulate_drag(float(imu.t_s), imu.f_ib_b_mps2)
 
@@ -208,6 +220,8 @@ class InsEkfNavigator(Navigator):
         self._estimate = None
         p, ekf = self.params, self.ekf
         t = float(getattr(measurement, "t_s", ekf.t_s))
+        if self._rollback is not None and not self._replaying and not isinstance(measurement, GnssFix):
+            self._rollback.record(measurement)
         if isinstance(measurement, PositionFix):
             if not p.use_position_fix:
                 return None
@@ -312,6 +326,35 @@ class InsEkfNavigator(Navigator):
         if t - self._last_gnss_t < self.params.gnss_min_interval_s - 1e-9:
             return None
         self._last_gnss_t = t
+        vel = np.asarray(fix.vel_ned_mps, float)
+        y, H, R = self._gnss_residual(fix, vel)
+        mon = self.gnss_monitor
+        if mon is not None:
+            was_alarm = mon.alarm
+            mon.test(t, vel, fix.vel_sigma_mps)
+            if mon.alarm:
+                if not was_alarm:
+                    log.warning("%s: GNSS excluded from t=%.1f s: the fixes' velocity change over %.0f s disagrees "
+                                "with the INS's (spoofing monitor q=%.1f > %.1f); the filter goes back %.0f s and "
+                                "runs on without it", self.ctx.vehicle_id, t, mon.p.window_s, mon.q, mon.threshold,
+                                mon.p.rollback_s)
+                    self._rewind_without_gnss(t - mon.p.rollback_s)
+                    self._last_gnss_t = t
+                    y, H, R = self._gnss_residual(fix, vel)
+                # Tested against the filter, not fused; no reset to it either.
+                info = self.ekf.check("gnss:excluded", t, y, H, R)
+                gate_ok = info.nis <= chi2_threshold(self.params.gate_probability, y.size)
+                if mon.consider_release(t, gate_ok):
+                    log.warning("%s: GNSS re-admitted at t=%.1f s (monitor and gate passed for %.0f s)",
+                                self.ctx.vehicle_id, t, mon.p.release_s)
+                return info
+            self._rollback.snapshot(t, self._rollback_state())
+        info, self._last_gnss_ok_t_s = self._update_or_reset(
+            "gnss", t, y, H, R, self._last_gnss_ok_t_s, self._last_fix_ok_t_s, self.params.gnss_reset_after_s)
+        return info
+
+    def _gnss_residual(self, fix: GnssFix, vel: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """y, H, R of a GNSS fix against the filter: position, and velocity when used."""
         ekf, s = self.ekf, self.params.meas_sigma
         if s.gnss_pos_m:  # an override is the white part alone
             pos_sigma = np.full(3, s.gnss_pos_m)
@@ -322,15 +365,39 @@ class InsEkfNavigator(Navigator):
             claim2 = np.square(np.asarray(fix.pos_sigma_m, float))
             pos_sigma = np.sqrt(np.maximum(claim2 - self.params.gnss_error_sigma_m**2, 0.01 * claim2))
         y, H, R = meas.gnss_position(ekf, fix.lat_rad, fix.lon_rad, fix.alt_m, pos_sigma)
-        vel = np.asarray(fix.vel_ned_mps, float)
         if self.params.use_gnss_velocity and vel.shape == (3,) and np.all(np.isfinite(vel)):
             vel_sigma = np.full(3, s.gnss_vel_mps) if s.gnss_vel_mps else np.asarray(fix.vel_sigma_mps, float)
             yv, Hv, Rv = meas.gnss_velocity(ekf, vel, vel_sigma)
             y, H = np.concatenate([y, yv]), np.vstack([H, Hv])
             R = np.block([[R, np.zeros((3, 3))], [np.zeros((3, 3)), Rv]])
-        info, self._last_gnss_ok_t_s = self._update_or_reset(
-            "gnss", t, y, H, R, self._last_gnss_ok_t_s, self._last_fix_ok_t_s, self.params.gnss_reset_after_s)
-        return info
+        return y, H, R
+
+    # The navigator's state a rewind restores: the filter and the bookkeeping of its aids.
+    _ROLLBACK_ATTRS = ("ekf", "_airspeed", "_last_airspeed_fused_t_s", "_last_gnss_t", "_last_fix_ok_t_s",
+                       "_last_gnss_ok_t_s", "_last_baro_ok_t_s", "_drag_acc", "_drag_t0_s")
+
+    def _rollback_state(self) -> dict:
+        return {k: getattr(self, k) for k in self._ROLLBACK_ATTRS}
+
+    def _rewind_without_gnss(self, before_t_s: float) -> None:
+        """Back to the state before the GNSS fix at or before before_t_s, then the IMU samples
+        and the other sources' measurements since, replayed in order (rollback.py)."""
+        back = self._rollback.rewind(before_t_s)
+        if back is None:
+            return
+        state, items = back
+        for k, v in state.items():
+            setattr(self, k, v)
+        self._replaying = True
+        try:
+            for item in items:
+                if isinstance(item, ImuSample):
+                    self.predict(item)
+                else:
+                    self.correct(item)
+        finally:
+            self._replaying = False
+        self._estimate = None
 
     def _correct_airspeed(self, airspeed_mps: float, t: float) -> CorrectionInfo | None:
         """Fuse the true airspeed and, unless sideslip_sigma_deg is None, zero sideslip as one

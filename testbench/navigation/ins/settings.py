@@ -10,6 +10,7 @@ from typing import Literal
 import pydantic
 
 from testbench.core.registry import ParamsModel
+from testbench.navigation.ins.gnss_monitor import GnssMonitorParams
 
 
 class InitialSigmas(ParamsModel):
@@ -158,6 +159,12 @@ class InsEkfParams(ParamsModel):
     gnss_min_interval_s: float = pydantic.Field(1.0, ge=0.0)
     """GNSS fixes closer than this to the last one used are skipped (cost: the receiver's
     correlated error is modelled, so the skipped fixes carry little information)."""
+    gnss_monitor: GnssMonitorParams | None = None
+    """Spoofing monitor (gnss_monitor.py; None: off): each fix's velocity change over a window
+    against the INS's own; once it alarms, GNSS fixes are tested but not fused (kind
+    "gnss:excluded"), and the navigator never resets to them, until the monitor and the gate
+    have both passed for release_s. For a vehicle with no other absolute aid, which a spoofer
+    otherwise carries away (the gate follows a slow drag, and gnss_reset_after_s resets to it)."""
     gnss_error_sigma_m: float = pydantic.Field(1.0, ge=0.0)
     gnss_error_tau_s: float = pydantic.Field(60.0, gt=0.0)
     """The receiver's position error that is correlated over tens of seconds (ionosphere,

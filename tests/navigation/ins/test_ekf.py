@@ -224,6 +224,37 @@ def test_fixes_rejected_past_the_timeout_reset_the_position():
             assert np.linalg.norm(nav.estimate().pos_ned_m - true_ned) < 10.0
 
 
+def test_spoofing_monitor_holds_a_carry_off_out_and_blocks_the_reset():
+    """A static vehicle whose receiver is dragged east at 0.2 m/s^2 from 10 s: without the
+    monitor the filter follows the fixes (first the gate passes them, then gnss_reset_after_s
+    resets to them); with it, GNSS is held out as "gnss:excluded" (tested, NIS given, not fused)
+    within seconds, the filter goes back to before the drag and runs on inertially, and the
+    estimate stays near the truth."""
+    w, f = static_imu(LAT0, H0, np.array([1.0, 0, 0, 0]))
+    true_ned = geodesy.geodetic_to_ned(LAT0, LON0, H0, ORIGIN.lat_rad, ORIGIN.lon_rad, ORIGIN.alt_m)
+    drift_east_m = {}
+    for monitor in (None, {}):
+        nav = _converged_static_nav(**({} if monitor is None else {"gnss_monitor": monitor}))
+        infos = []
+        for k in range(201, 1601):  # 10-80 s at 20 Hz, a fix a second
+            t = k * 0.05
+            nav.predict(ImuSample(t, w, f))
+            if k % 20 == 0:
+                tau = max(t - 10.0, 0.0)
+                lat, lon, h = geodesy.ned_to_geodetic(true_ned + np.array([0.0, 0.1 * tau * tau, 0.0]),
+                                                      ORIGIN.lat_rad, ORIGIN.lon_rad, ORIGIN.alt_m)
+                infos.append(nav.correct(GnssFix(t, lat, lon, h, np.array([0.0, 0.2 * tau, 0.0]),
+                                                 np.full(3, 2.0), np.full(3, 0.1))))
+        drift_east_m[monitor is not None] = float(nav.estimate().pos_ned_m[1] - true_ned[1])
+        if monitor is not None:
+            excluded = [i for i in infos if i.kind == "gnss:excluded"]
+            assert excluded and not any(i.accepted for i in excluded)
+            assert excluded[0].t_s <= 25.0 and excluded[-1].innovation[1] > 400.0  # the drag, seen, not fused
+            assert nav.gnss_monitor.alarm
+    assert drift_east_m[False] > 300.0  # 0.1 * 70^2 = 490 m: it went with the spoofer
+    assert abs(drift_east_m[True]) < 30.0
+
+
 def test_baro_rejected_past_the_timeout_resets_the_height():
     """A filter confidently 60 m off in height (the baro rejected) re-acquires it after
     baro_reset_after_s of rejections; with the reset off it keeps rejecting the baro."""

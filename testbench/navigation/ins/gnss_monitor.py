@@ -1,0 +1,122 @@
+"""A GNSS spoofing monitor that needs no second position source: the receiver's velocity change
+over a window against the change the INS integrated from its own accelerometers.
+
+A spoofer that drags the fix away must accelerate it (a carry-off: Humphreys et al. 2008; the
+test follows the inertial monitors of Tanil, Khanafseh and Pervan, IEEE TAES 2018). The INS
+measures the vehicle's true accelerations, so over a window T the receiver's velocity change
+Delta v_gnss = v_gnss(t) - v_gnss(t - T) and the INS's own Delta v_ins (the sum of its
+propagation steps, without the filter's corrections) differ by the spoofer's acceleration times
+T. Without a spoofer they differ by the receivers' velocity noise at both ends and by what the
+INS gets wrong about the acceleration over T (tilt times g, heading error times the turn's
+acceleration, bias, scale factor), modelled as a white `accel_sigma_mps2`:
+
+  d = Delta v_gnss - Delta v_ins                                  (NED, m/s)
+  q = sum_i d_i^2 / (var_gnss_i(t) + var_gnss_i(t - T) + (accel_sigma T)^2)     ~ chi2(3)
+
+where each end's receiver velocity is the mean of its last `average_fixes` fixes (its claim
+divided accordingly), and the INS's sum the mean of its values at those fixes' times. `n_consecutive` tests in a row beyond the chi-square quantile at
+`probability` raise the alarm. What it cannot see: a spoofer that never accelerates faster
+than the INS's own error (an offset grown at accel_sigma or less), or one that has finished its
+ramp by the time the monitor starts; a position fix (scene matching) sees those.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+import pydantic
+from scipy import stats
+
+from testbench.core.registry import ParamsModel
+
+
+class GnssMonitorParams(ParamsModel):
+    """window_s: T (s); average_fixes: fixes averaged at each end of the window;
+    accel_sigma_mps2: 1-sigma of the INS's unexplained acceleration over a window (m/s^2; the
+    paper IMU's tilt of 0.3 mrad is 0.003, a 1 mrad heading error in a 30 deg bank 0.006; with
+    0.005 the test's q had median 1.9-2.5 and 99th percentile 8.9-11.1 over six 600 s flights of
+    the paper racetrack with GNSS throughout, chi2(3)'s being 2.37 and 11.3; a consumer MEMS
+    IMU needs ten times more);
+    probability: chi-square quantile one test must pass (per test: the tests overlap, so the
+    false-alarm rate per hour is set by n_consecutive as much); n_consecutive: failed tests in a
+    row that raise the alarm; rollback_s: on the alarm the navigator goes back to its state
+    before the GNSS fix this long before (the spoofer's acceleration began about window_s plus
+    the tests in a row before the alarm) and replays the IMU and the other aids since without
+    GNSS (rollback.py): the fixes it fused meanwhile had put the spoofer's drag into its
+    velocity and biases; release_s: once raised, GNSS comes back only after the monitor's
+    test and the filter's own gate have both passed for this long (a spoofer that stops
+    accelerating passes the first, not the second: its offset stays)."""
+
+    window_s: float = pydantic.Field(10.0, gt=0)
+    average_fixes: int = pydantic.Field(3, ge=1)
+    accel_sigma_mps2: float = pydantic.Field(0.005, gt=0)
+    probability: float = pydantic.Field(0.9999, gt=0.5, lt=1.0)
+    n_consecutive: int = pydantic.Field(3, ge=1)
+    release_s: float = pydantic.Field(30.0, ge=0)
+    rollback_s: float = pydantic.Field(20.0, ge=0)
+
+
+class GnssInertialMonitor:
+    """Feed it every IMU propagation's velocity step (`add_inertial`) and every GNSS fix
+    (`test`); `alarm` says whether GNSS is suspected now."""
+
+    def __init__(self, p: GnssMonitorParams):
+        self.p = p
+        self.threshold = float(stats.chi2.ppf(p.probability, 3))
+        self._dv_ins = np.zeros(3)  # running sum of the INS's propagation steps (NED m/s)
+        self._fixes: deque[tuple[float, np.ndarray, np.ndarray, np.ndarray]] = deque()  # t, v, var, sum dv
+        self._recent: deque[tuple[np.ndarray, np.ndarray, np.ndarray]] = deque(maxlen=p.average_fixes)
+        self._n_failed = 0
+        self._clean_since_s: float | None = None
+        self.alarm = False
+        self.alarm_t_s: float | None = None
+        self.q = 0.0
+
+    def add_inertial(self, dv_ned_mps) -> None:
+        """One propagation step's velocity change (3,) NED m/s (not a correction's)."""
+        self._dv_ins += dv_ned_mps
+
+    def test(self, t_s: float, vel_ned_mps, vel_sigma_mps) -> float:
+        """Test a fix's velocity (3,) with its claimed sigma (3,) against the window; returns q
+        (0 until a window's worth of fixes is in) and updates `alarm`."""
+        # Both sides averaged over the same fixes: a mean of fixes lags the newest by half their
+        # span, and in a turn's entry (5.7 m/s^2 at 30 deg of bank) the INS's sum taken at the
+        # newest alone was metres per second off it.
+        self._recent.append((np.asarray(vel_ned_mps, float), np.square(np.asarray(vel_sigma_mps, float)),
+                             self._dv_ins.copy()))
+        n = len(self._recent)
+        v_mean = sum(r[0] for r in self._recent) / n
+        var_mean = sum(r[1] for r in self._recent) / (n * n)
+        dv_mean = sum(r[2] for r in self._recent) / n
+        self._fixes.append((t_s, v_mean, var_mean, dv_mean))
+        while len(self._fixes) > 1 and self._fixes[1][0] <= t_s - self.p.window_s + 1e-9:
+            self._fixes.popleft()
+        t0, v0, var0, dv0 = self._fixes[0]
+        T = t_s - t0
+        if T < self.p.window_s - 1e-9 or n < self.p.average_fixes:
+            self.q = 0.0
+            return self.q
+        d = (v_mean - v0) - (dv_mean - dv0)
+        var = var_mean + var0 + (self.p.accel_sigma_mps2 * T) ** 2
+        self.q = float(np.sum(d * d / var))
+        self._n_failed = self._n_failed + 1 if self.q > self.threshold else 0
+        if not self.alarm and self._n_failed >= self.p.n_consecutive:
+            self.alarm, self.alarm_t_s, self._clean_since_s = True, t_s, None
+        return self.q
+
+    def consider_release(self, t_s: float, gate_passed: bool) -> bool:
+        """While the alarm stands: count the time both the monitor's last test and the filter's
+        gate (on the fix just tested) have passed; release the alarm after release_s of that.
+        Returns whether the alarm was released now."""
+        if not self.alarm:
+            return False
+        if self.q > self.threshold or not gate_passed:
+            self._clean_since_s = None
+            return False
+        if self._clean_since_s is None:
+            self._clean_since_s = t_s
+        if t_s - self._clean_since_s >= self.p.release_s:
+            self.alarm, self._n_failed, self._clean_since_s = False, 0, None
+            return True
+        return False
