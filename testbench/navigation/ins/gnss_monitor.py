@@ -13,11 +13,15 @@ acceleration, bias, scale factor), modelled as a white `accel_sigma_mps2`:
   d = Delta v_gnss - Delta v_ins                                  (NED, m/s)
   q = sum_i d_i^2 / (var_gnss_i(t) + var_gnss_i(t - T) + (accel_sigma T)^2)     ~ chi2(3)
 
-where each end's receiver velocity is the mean of its last `average_fixes` fixes (its claim
-divided accordingly), and the INS's sum the mean of its values at those fixes' times. `n_consecutive` tests in a row beyond the chi-square quantile at
-`probability` raise the alarm. What it cannot see: a spoofer that never accelerates faster
-than the INS's own error (an offset grown at accel_sigma or less), or one that has finished its
-ramp by the time the monitor starts; a position fix (scene matching) sees those.
+`n_consecutive` tests in a row beyond the chi-square quantile at `probability` raise the alarm.
+(The filter fusing the dragged fixes meanwhile tilts its attitude to explain the drag, about
+5 mrad for 0.05 m/s^2, and the INS's steps then carry it: a drag not caught within 10-15 s
+hides until a turn shows the tilt for what it is.)
+Each end's receiver velocity is the mean of its last `average_fixes` fixes (its claim divided
+accordingly), and the INS's sum the mean of its values at those fixes' times. What it cannot
+see: a spoofer that never accelerates faster than the INS's own error (an offset grown at
+accel_sigma or less), or one that has finished its ramp by the time the monitor starts; a
+position fix (scene matching) sees those.
 """
 
 from __future__ import annotations
@@ -39,8 +43,9 @@ class GnssMonitorParams(ParamsModel):
     the paper racetrack with GNSS throughout, chi2(3)'s being 2.37 and 11.3; a consumer MEMS
     IMU needs ten times more);
     probability: chi-square quantile one test must pass (per test: the tests overlap, so the
-    false-alarm rate per hour is set by n_consecutive as much); n_consecutive: failed tests in a
-    row that raise the alarm; rollback_s: on the alarm the navigator goes back to its state
+    false-alarm rate per hour is set by n_consecutive as much; 0.999 raised no alarm in twenty
+    600 s flights with true GNSS, and caught 18 of 20 carry-offs within 7-13 s where 0.9999
+    caught 13); n_consecutive: failed tests in a row that raise the alarm; rollback_s: on the alarm the navigator goes back to its state
     before the GNSS fix this long before (the spoofer's acceleration began about window_s plus
     the tests in a row before the alarm) and replays the IMU and the other aids since without
     GNSS (rollback.py): the fixes it fused meanwhile had put the spoofer's drag into its
@@ -51,7 +56,7 @@ class GnssMonitorParams(ParamsModel):
     window_s: float = pydantic.Field(10.0, gt=0)
     average_fixes: int = pydantic.Field(3, ge=1)
     accel_sigma_mps2: float = pydantic.Field(0.005, gt=0)
-    probability: float = pydantic.Field(0.9999, gt=0.5, lt=1.0)
+    probability: float = pydantic.Field(0.999, gt=0.5, lt=1.0)
     n_consecutive: int = pydantic.Field(3, ge=1)
     release_s: float = pydantic.Field(30.0, ge=0)
     rollback_s: float = pydantic.Field(20.0, ge=0)
