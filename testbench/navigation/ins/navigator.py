@@ -188,6 +188,7 @@ class InsEkfNavigator(Navigator):
             self.ekf.propagate(float(imu.t_s), imu.omega_ib_b_rps, imu.f_ib_b_mps2)
             v1 = self.ekf.ins.vel
             self.gnss_monitor.add_inertial((v1[0] - v0[0], v1[1] - v0[1], v1[2] - v0[2]))
+            self.gnss_monitor.propagate_copies(float(imu.t_s), imu.omega_ib_b_rps, imu.f_ib_b_mps2)
         if self._drag_mu_per_s is not None:
             self._accumulate_drag(float(imu.t_s), imu.f_ib_b_mps2)
 
@@ -349,6 +350,14 @@ class InsEkfNavigator(Navigator):
                                 self.ctx.vehicle_id, t, mon.p.release_s)
                 return info
             self._rollback.snapshot(t, self._rollback_state())
+            if mon.p.free_window_s is not None:
+                # The copy's errors from the filter's own covariance: its acceleration error (tilt
+                # times g, and the accelerometer bias: means of the horizontal tilt and of the
+                # three bias variances) and its heading error.
+                P = self.ekf.covariance()
+                accel_var = (STANDARD_GRAVITY_MPS2**2 * 0.5 * (P[IA, IA][0, 0] + P[IA, IA][1, 1])
+                             + float(np.trace(P[IBA, IBA])) / 3.0)
+                mon.start_copy(t, self.ekf.ins, self.ekf.b_g, self.ekf.b_a, accel_var, P[IA, IA][2, 2])
         info, self._last_gnss_ok_t_s = self._update_or_reset(
             "gnss", t, y, H, R, self._last_gnss_ok_t_s, self._last_fix_ok_t_s, self.params.gnss_reset_after_s)
         return info
