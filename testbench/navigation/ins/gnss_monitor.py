@@ -186,6 +186,7 @@ class GnssInertialMonitor:
         if self._clean_since_s is None:
             self._clean_since_s = t_s
         if t_s - self._clean_since_s >= self.p.release_s:
-            self.alarm, self._n_failed, self._clean_since_s = False, 0, None
+            self.alarm, self._n_failed, self._n_failed_free, self._clean_since_s = False, 0, 0, None
+            self._copies.clear()  # started before or during the alarm: a fresh start
             return True
         return False

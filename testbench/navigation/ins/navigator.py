@@ -335,10 +335,10 @@ class InsEkfNavigator(Navigator):
             mon.test(t, vel, fix.vel_sigma_mps)
             if mon.alarm:
                 if not was_alarm:
-                    log.warning("%s: GNSS excluded from t=%.1f s: the fixes' velocity change over %.0f s disagrees "
-                                "with the INS's (spoofing monitor q=%.1f > %.1f); the filter goes back %.0f s and "
-                                "runs on without it", self.ctx.vehicle_id, t, mon.p.window_s, mon.q, mon.threshold,
-                                mon.p.rollback_s)
+                    log.warning("%s: GNSS excluded from t=%.1f s: the fixes' velocity change disagrees with the "
+                                "INS's (spoofing monitor q=%.1f, free-running q=%.1f, threshold %.1f); the filter "
+                                "goes back %.0f s and runs on without it", self.ctx.vehicle_id, t, mon.q, mon.q_free,
+                                mon.threshold, mon.p.rollback_s)
                     self._rewind_without_gnss(t - mon.p.rollback_s)
                     self._last_gnss_t = t
                     y, H, R = self._gnss_residual(fix, vel)
