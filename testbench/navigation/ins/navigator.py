@@ -27,12 +27,11 @@ from testbench.core.units import DEG_TO_RAD, STANDARD_GRAVITY_MPS2
 from testbench.navigation.fix_quality import appearance_gain
 from testbench.navigation.ins import measurements as meas
 from testbench.navigation.ins.consistency import error_state
-from testbench.navigation.ins.ekf import ErrorStateEKF, chi2_threshold
+from testbench.navigation.ins.ekf import ErrorStateEKF
 from testbench.navigation.ins.error_model import IA, IBA, IBB, IBG, IDS, IFX, IGN, IP, IV, IW
-from testbench.navigation.ins.gnss_monitor import GnssInertialMonitor
+from testbench.navigation.ins.gnss_guard import GnssSpoofGuard
 from testbench.navigation.ins.imu_noise import imu_noise_from_datasheet, preset_datasheet, preset_names, preset_scale_error
 from testbench.navigation.ins.magnetic import OnboardMagneticModel
-from testbench.navigation.ins.rollback import RollbackBuffer
 from testbench.navigation.ins.settings import InsEkfParams
 
 log = logging.getLogger(__name__)
@@ -103,9 +102,8 @@ class InsEkfNavigator(Navigator):
         self._last_fix_ok_t_s: float | None = None  # last accepted position fix (None: none yet)
         self._last_gnss_ok_t_s: float | None = None  # last accepted GNSS fix (None: none yet)
         self._last_baro_ok_t_s: float | None = None  # last accepted barometer sample
-        self.gnss_monitor = None if params.gnss_monitor is None else GnssInertialMonitor(params.gnss_monitor)
-        self._rollback = None if params.gnss_monitor is None else RollbackBuffer(params.gnss_monitor.rollback_s + 5.0)
-        self._replaying = False
+        self._gnss_guard = None if params.gnss_monitor is None else GnssSpoofGuard(params.gnss_monitor)
+        self.gnss_monitor = None if self._gnss_guard is None else self._gnss_guard.monitor
         d = params.drag_aiding
         self._drag_mu_per_s = None if d is None else (d.coefficient_per_s or meas.momentum_drag_per_s(aircraft or {}))
         self._drag_acc = [0.0, 0.0, 0.0, 0.0, 0]  # sums over the interval: f_bx, f_by, v_bx, v_by; count
@@ -180,15 +178,10 @@ class InsEkfNavigator(Navigator):
     def predict(self, imu: ImuSample) -> None:
         self._require_init()
         self._estimate = None
-        if self.gnss_monitor is None or self._replaying:
+        if self._gnss_guard is None:
             self.ekf.propagate(float(imu.t_s), imu.omega_ib_b_rps, imu.f_ib_b_mps2)
-        else:  # the monitor sums the INS's own velocity steps (no correction's)
-            self._rollback.record(imu)
-            v0 = self.ekf.ins.vel
-            self.ekf.propagate(float(imu.t_s), imu.omega_ib_b_rps, imu.f_ib_b_mps2)
-            v1 = self.ekf.ins.vel
-            self.gnss_monitor.add_inertial((v1[0] - v0[0], v1[1] - v0[1], v1[2] - v0[2]))
-            self.gnss_monitor.propagate_copies(float(imu.t_s), imu.omega_ib_b_rps, imu.f_ib_b_mps2)
+        else:  # the spoofing monitor's bookkeeping around the same propagation
+            self._gnss_guard.propagate(self, imu)
         if self._drag_mu_per_s is not None:
             self._accumulate_drag(float(imu.t_s), imu.f_ib_b_mps2)
 
@@ -221,8 +214,8 @@ class InsEkfNavigator(Navigator):
         self._estimate = None
         p, ekf = self.params, self.ekf
         t = float(getattr(measurement, "t_s", ekf.t_s))
-        if self._rollback is not None and not self._replaying and not isinstance(measurement, GnssFix):
-            self._rollback.record(measurement)
+        if self._gnss_guard is not None:
+            self._gnss_guard.record(measurement)
         if isinstance(measurement, PositionFix):
             if not p.use_position_fix:
                 return None
@@ -329,35 +322,10 @@ class InsEkfNavigator(Navigator):
         self._last_gnss_t = t
         vel = np.asarray(fix.vel_ned_mps, float)
         y, H, R = self._gnss_residual(fix, vel)
-        mon = self.gnss_monitor
-        if mon is not None:
-            was_alarm = mon.alarm
-            mon.test(t, vel, fix.vel_sigma_mps)
-            if mon.alarm:
-                if not was_alarm:
-                    log.warning("%s: GNSS excluded from t=%.1f s: the fixes' velocity change disagrees with the "
-                                "INS's (spoofing monitor q=%.1f, free-running q=%.1f, threshold %.1f); the filter "
-                                "goes back %.0f s and runs on without it", self.ctx.vehicle_id, t, mon.q, mon.q_free,
-                                mon.threshold, mon.p.rollback_s)
-                    self._rewind_without_gnss(t - mon.p.rollback_s)
-                    self._last_gnss_t = t
-                    y, H, R = self._gnss_residual(fix, vel)
-                # Tested against the filter, not fused; no reset to it either.
-                info = self.ekf.check("gnss:excluded", t, y, H, R)
-                gate_ok = info.nis <= chi2_threshold(self.params.gate_probability, y.size)
-                if mon.consider_release(t, gate_ok):
-                    log.warning("%s: GNSS re-admitted at t=%.1f s (monitor and gate passed for %.0f s)",
-                                self.ctx.vehicle_id, t, mon.p.release_s)
-                return info
-            self._rollback.snapshot(t, self._rollback_state())
-            if mon.p.free_window_s is not None:
-                # The copy's errors from the filter's own covariance: its acceleration error (tilt
-                # times g, and the accelerometer bias: means of the horizontal tilt and of the
-                # three bias variances) and its heading error.
-                P = self.ekf.covariance()
-                accel_var = (STANDARD_GRAVITY_MPS2**2 * 0.5 * (P[IA, IA][0, 0] + P[IA, IA][1, 1])
-                             + float(np.trace(P[IBA, IBA])) / 3.0)
-                mon.start_copy(t, self.ekf.ins, self.ekf.b_g, self.ekf.b_a, accel_var, P[IA, IA][2, 2])
+        if self._gnss_guard is not None:
+            excluded = self._gnss_guard.screen(self, fix, t, vel, y, H, R)
+            if excluded is not None:
+                return excluded
         info, self._last_gnss_ok_t_s = self._update_or_reset(
             "gnss", t, y, H, R, self._last_gnss_ok_t_s, self._last_fix_ok_t_s, self.params.gnss_reset_after_s)
         return info
@@ -381,32 +349,10 @@ class InsEkfNavigator(Navigator):
             R = np.block([[R, np.zeros((3, 3))], [np.zeros((3, 3)), Rv]])
         return y, H, R
 
-    # The navigator's state a rewind restores: the filter and the bookkeeping of its aids.
-    _ROLLBACK_ATTRS = ("ekf", "_airspeed", "_last_airspeed_fused_t_s", "_last_gnss_t", "_last_fix_ok_t_s",
-                       "_last_gnss_ok_t_s", "_last_baro_ok_t_s", "_drag_acc", "_drag_t0_s")
-
-    def _rollback_state(self) -> dict:
-        return {k: getattr(self, k) for k in self._ROLLBACK_ATTRS}
-
-    def _rewind_without_gnss(self, before_t_s: float) -> None:
-        """Back to the state before the GNSS fix at or before before_t_s, then the IMU samples
-        and the other sources' measurements since, replayed in order (rollback.py)."""
-        back = self._rollback.rewind(before_t_s)
-        if back is None:
-            return
-        state, items = back
-        for k, v in state.items():
-            setattr(self, k, v)
-        self._replaying = True
-        try:
-            for item in items:
-                if isinstance(item, ImuSample):
-                    self.predict(item)
-                else:
-                    self.correct(item)
-        finally:
-            self._replaying = False
-        self._estimate = None
+    # The navigator's state a rewind of the spoofing monitor restores (gnss_guard.py): the
+    # filter and the bookkeeping of its aids.
+    ROLLBACK_ATTRS = ("ekf", "_airspeed", "_last_airspeed_fused_t_s", "_last_gnss_t", "_last_fix_ok_t_s",
+                      "_last_gnss_ok_t_s", "_last_baro_ok_t_s", "_drag_acc", "_drag_t0_s")
 
     def _correct_airspeed(self, airspeed_mps: float, t: float) -> CorrectionInfo | None:
         """Fuse the true airspeed and, unless sideslip_sigma_deg is None, zero sideslip as one
