@@ -8,6 +8,7 @@ Units are in key names: `_m`, `_s`, `_hz`, `_deg`, `_mps`.
 
 from __future__ import annotations
 
+import math
 from typing import Any, Literal
 
 import pydantic
@@ -44,10 +45,47 @@ class Origin(pydantic.BaseModel):
     alt_m: float = 0.0
 
 
+class Turbulence(pydantic.BaseModel):
+    """Atmospheric turbulence, JSBSim's Dryden-spectrum models (FGWinds; MIL-F-8785C scale
+    lengths and intensities, Yeager 1998, NASA CR-206937): `milspec` (MIL-STD-1797A difference
+    equations, JSBSim turb-type 3) or `tustin` (Tustin-discretised, turb-type 4).
+
+    severity: the milspec's probability-of-exceedance curve above 2000 ft (MIL-F-8785C fig. 7):
+    light (JSBSim index 3; 2.0-2.3 m/s RMS at 500-3750 ft), moderate (4; 2.6-3.2 m/s), severe
+    (6; 4.8-7.0 m/s). windspeed_at_6m_mps: the wind at 20 ft above the ground that sets the
+    intensity below 1000 ft (0.1 of it vertically, up to twice that along the wind); None: the
+    mean wind's speed. JSBSim takes the height for these from the altitude above sea level, and
+    its filters run on the vehicle's airspeed, so a vehicle hovering in still air sees none."""
+
+    model_config = _CFG
+    model: Literal["milspec", "tustin"] = "milspec"
+    severity: Literal["light", "moderate", "severe"] = "light"
+    windspeed_at_6m_mps: float | None = Field(default=None, ge=0.0, le=60.0)
+
+
+class Wind(pydantic.BaseModel):
+    """The air mass: a steady horizontal wind, the same everywhere and at every height, plus
+    optional turbulence (each vehicle draws its own, seeded from the scenario seed).
+
+    speed_mps: mean wind speed; from_deg: the true bearing the wind blows from (meteorological:
+    270 is a westerly, moving the air east), clockwise from north."""
+
+    model_config = _CFG
+    speed_mps: float = Field(ge=0.0, le=60.0)
+    from_deg: float = Field(ge=0.0, lt=360.0)
+    turbulence: Turbulence | None = None
+
+    def velocity_ned_mps(self) -> tuple[float, float, float]:
+        """The steady wind as the air's velocity over the ground, NED (m/s): it moves towards
+        from_deg + 180."""
+        to_rad = math.radians(self.from_deg + 180.0)
+        return (self.speed_mps * math.cos(to_rad), self.speed_mps * math.sin(to_rad), 0.0)
+
+
 class World(pydantic.BaseModel):
     """The world: origin, what cameras render (imagery), what vehicles carry (reference_map),
-    terrain (elevation). Maps are GeoTIFF paths (with ${VAR} expansion) or `procedural:` specs;
-    None means no imagery / flat ground."""
+    terrain (elevation), the air mass (wind; None: calm air). Maps are GeoTIFF paths (with
+    ${VAR} expansion) or `procedural:` specs; None means no imagery / flat ground."""
 
     model_config = _CFG
     origin: Origin
@@ -56,11 +94,16 @@ class World(pydantic.BaseModel):
     elevation: str | None = None
     reference_elevation: str | None = None
     obstacles: list[dict[str, Any]] = Field(default_factory=list)
+    wind: Wind | None = None
 
 
 class InitialState(pydantic.BaseModel):
     """Initial position (local metres or lat/lon), altitude above the origin's ground,
-    heading and airspeed. Exactly one of (north_m, east_m) and (lat_deg, lon_deg)."""
+    heading and airspeed. Exactly one of (north_m, east_m) and (lat_deg, lon_deg).
+
+    airspeed_mps: a fixed wing flies at it through the air along its heading (its ground
+    velocity adds the wind); a multirotor moves at it over the ground along its heading
+    (0: hovering over its start point, whatever the wind)."""
 
     model_config = _CFG
     north_m: float | None = None

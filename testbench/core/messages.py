@@ -27,6 +27,8 @@ class TruthState:
         senses; about (0, 0, -g) in level unaccelerated flight).
     airspeed_mps: true airspeed; height_agl_m: height above the terrain below the vehicle.
     pressure_pa, temperature_k: static atmosphere at the vehicle (for the barometer).
+    wind_ned_mps (3,): the air's velocity over the ground at the vehicle, NED (steady wind plus
+        turbulence; zeros in calm air): vel_ned_mps minus it is the velocity through the air.
     """
 
     t_s: float
@@ -44,6 +46,7 @@ class TruthState:
     height_agl_m: float
     pressure_pa: float
     temperature_k: float
+    wind_ned_mps: np.ndarray
 
 
 @dataclass(frozen=True, slots=True)
@@ -171,7 +174,10 @@ class NavEstimate:
     pos_ned_m, vel_ned_mps (3,); q_nb_wxyz (4,); rpy_rad (3,);
     omega_b_rps (3,): bias-corrected body rate relative to the Earth (for rate damping);
     cov_pos_ned_m2, cov_vel_ned_m2s2, cov_att_rad2 (3, 3): marginal covariances;
-    airspeed_mps: estimated true airspeed when the vehicle measures it, else None.
+    airspeed_mps: estimated true airspeed when the vehicle measures it, else None;
+    wind_ne_mps (2,), cov_wind_ne_m2s2 (2, 2): the estimated horizontal wind (the air's
+        velocity over the ground, north and east) and its covariance, when the navigator
+        estimates the wind, else None.
     """
 
     t_s: float
@@ -184,6 +190,8 @@ class NavEstimate:
     cov_vel_ned_m2s2: np.ndarray
     cov_att_rad2: np.ndarray
     airspeed_mps: float | None = None
+    wind_ne_mps: np.ndarray | None = None
+    cov_wind_ne_m2s2: np.ndarray | None = None
 
 
 @dataclass(frozen=True, slots=True)

@@ -11,6 +11,10 @@ One `JSBSimDynamics` owns one FGFDMExec (one vehicle). The adapter:
 Terrain: JSBSim's own ground is the flat ellipsoid at the origin altitude; relief comes from the
 world's elevation model through `terrain_height_fn` (m above the origin altitude, up positive),
 which defines `height_agl_m` and terrain impact.
+
+Wind: JSBSim's own air mass (FGWinds) carries the steady wind and the Dryden turbulence
+(`AirMass`), so the aerodynamics (the wing's lift and drag, the rotors' drag) see the
+air-relative velocity, and the truth reports the wind the vehicle meets.
 """
 
 from __future__ import annotations
@@ -61,6 +65,33 @@ class InitialCondition:
     trim: bool = True
 
 
+@dataclass(frozen=True)
+class AirMass:
+    """The air one vehicle flies through (JSBSim's FGWinds).
+
+    wind_ned_mps (3,): the steady wind, the air's velocity over the ground, NED m/s;
+    turbulence_type: JSBSim atmosphere/turb-type (0 none, 3 milspec, 4 tustin: Dryden spectra
+    after MIL-F-8785C); severity_index: the milspec's probability-of-exceedance curve (0-7: 3
+    light, 4 moderate, 6 severe); windspeed_at_20ft_mps: the wind 20 ft above the ground that
+    sets the intensity below 1000 ft; seed: the turbulence generator's seed (atmosphere/randomseed,
+    its own generator, so a run's turbulence depends only on it).
+    """
+
+    wind_ned_mps: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    turbulence_type: int = 0
+    severity_index: int = 0
+    windspeed_at_20ft_mps: float = 0.0
+    seed: int = 0
+
+    @property
+    def calm(self) -> bool:
+        return self.turbulence_type == 0 and not any(self.wind_ned_mps)
+
+
+_WIND_READ = ("atmosphere/total-wind-north-fps", "atmosphere/total-wind-east-fps", "atmosphere/total-wind-down-fps")
+_CALM_NED = np.zeros(3)
+_CALM_NED.flags.writeable = False  # shared by every calm-air truth: nobody may write into it
+
 # Property names read every time the truth is sampled, in TruthState order.
 _READ = (
     "position/lat-geod-rad",
@@ -99,7 +130,8 @@ class JSBSimDynamics(Dynamics):
     aircraft: model name (project `aircraft/` or jsbsim-bundled); origin: local NED origin;
     physics_rate_hz: JSBSim integration rate; terrain_height_fn(north_m, east_m) -> m above the
     origin altitude (None: flat ground at the origin altitude); allow_ground_contact: keep
-    running on the ground (take-off studies) instead of aborting.
+    running on the ground (take-off studies) instead of aborting; air: wind and turbulence
+    (None: calm air).
     """
 
     def __init__(
@@ -111,6 +143,7 @@ class JSBSimDynamics(Dynamics):
         terrain_height_fn: Callable[[float, float], float] | None = None,
         allow_ground_contact: bool = False,
         vehicle_id: str = "",
+        air: AirMass | None = None,
     ):
         self.aircraft = aircraft
         self.origin = origin
@@ -138,6 +171,8 @@ class JSBSimDynamics(Dynamics):
             raise InputError(f"aircraft {aircraft!r}: JSBSim model lacks properties {missing}")
         self._n_motors = len(self.aircraft_meta.get("motors", ())) if self.kind == "multirotor" else 0
         self._frame = LocalTangentFrame(origin.lat_rad, origin.lon_rad, origin.alt_m)
+        self._air = None if air is None or air.calm else air
+        self._wind_nodes = None if self._air is None else [pm.get_node(name, False) for name in _WIND_READ]
         self._truth: TruthState | None = None
         self._applied: SurfaceCommand | RotorCommand | None = None
 
@@ -160,10 +195,15 @@ class JSBSimDynamics(Dynamics):
         fdm["ic/long-gc-rad"] = float(lon)
         fdm["ic/h-sl-ft"] = float(alt) * M_TO_FT
         fdm["ic/psi-true-rad"] = float(initial.heading_rad)
-        fdm["ic/vt-kts"] = float(initial.airspeed_mps) * MPS_TO_KT
+        if self._air is None:
+            fdm["ic/vt-kts"] = float(initial.airspeed_mps) * MPS_TO_KT
+        else:
+            self._set_initial_velocity_in_wind(initial)
         fdm["ic/gamma-deg"] = 0.0
         if not fdm.run_ic():
             raise InputError(f"aircraft {self.aircraft!r}: JSBSim rejected the initial condition")
+        if self._air is not None:
+            self._set_turbulence()
         fdm["propulsion/set-running"] = -1
         if self.kind == "multirotor":
             hover = float(self.aircraft_meta.get("hover_throttle_norm", 0.5))
@@ -216,6 +256,40 @@ class JSBSimDynamics(Dynamics):
         return self._truth
 
     # -- internals ----------------------------------------------------------------------
+
+    def _set_initial_velocity_in_wind(self, initial: InitialCondition) -> None:
+        """The wind through JSBSim's initial condition (run_ic hands it to FGWinds), then the
+        ground velocity: a fixed wing's airspeed is through the air along its heading (no
+        sideslip, the wind added over the ground), a multirotor's over the ground. Setting
+        ic/vt-kts after the wind would scale the initial relative wind instead (JSBSim keeps
+        the ground velocity when the wind changes), giving a sideslipping start."""
+        fdm = self.fdm
+        w_n, w_e, w_d = (float(x) for x in self._air.wind_ned_mps)
+        w_h = math.hypot(w_n, w_e)
+        fdm["ic/vw-mag-fps"] = w_h * M_TO_FT
+        # ic/vw-dir-deg is the direction the air moves towards (measured: 270 gives a wind
+        # moving west), not the meteorological "from".
+        fdm["ic/vw-dir-deg"] = math.degrees(math.atan2(w_e, w_n)) % 360.0 if w_h > 0.0 else 0.0
+        psi = float(initial.heading_rad)
+        v = float(initial.airspeed_mps)
+        v_n, v_e, v_d = v * math.cos(psi), v * math.sin(psi), 0.0
+        if self.kind != "multirotor":
+            v_n, v_e, v_d = v_n + w_n, v_e + w_e, v_d + w_d
+        fdm["ic/vn-fps"] = v_n * M_TO_FT
+        fdm["ic/ve-fps"] = v_e * M_TO_FT
+        fdm["ic/vd-fps"] = v_d * M_TO_FT
+
+    def _set_turbulence(self) -> None:
+        """Turbulence model, intensity and its own seeded generator (after run_ic, which
+        re-initialises FGWinds)."""
+        air, fdm = self._air, self.fdm
+        fdm["atmosphere/wind-down-fps"] = float(air.wind_ned_mps[2]) * M_TO_FT
+        if air.turbulence_type == 0:
+            return
+        fdm["atmosphere/randomseed"] = int(air.seed)
+        fdm["atmosphere/turb-type"] = int(air.turbulence_type)
+        fdm["atmosphere/turbulence/milspec/severity"] = int(air.severity_index)
+        fdm["atmosphere/turbulence/milspec/windspeed_at_20ft_AGL-fps"] = float(air.windspeed_at_20ft_mps) * M_TO_FT
 
     def _terrain_at(self, north_m: float, east_m: float) -> float:
         if self._terrain is None:
@@ -288,6 +362,8 @@ class JSBSimDynamics(Dynamics):
             height_agl_m=height_agl,
             pressure_pa=p_psf * PSF_TO_PA,
             temperature_k=t_r * RANKINE_TO_KELVIN,
+            wind_ned_mps=_CALM_NED if self._wind_nodes is None
+            else np.array([n.get_double_value() * FT_TO_M for n in self._wind_nodes]),
         )
 
 
@@ -307,4 +383,4 @@ def _clip(x: float, lo: float, hi: float) -> float:
     return lo if x < lo else hi if x > hi else float(x)
 
 
-__all__ = ["InitialCondition", "JSBSimDynamics", "KT_TO_MPS"]
+__all__ = ["AirMass", "InitialCondition", "JSBSimDynamics", "KT_TO_MPS"]

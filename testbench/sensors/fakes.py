@@ -42,7 +42,7 @@ def make_truth(
         omega_eb_b_rps=np.asarray(omega_eb_b_rps, float),
         omega_ib_b_rps=np.asarray(omega_eb_b_rps, float) + R_bn @ earth_rate_ned_rps(lat),
         f_b_mps2=R_bn @ np.array([0.0, 0.0, -g]), airspeed_mps=float(airspeed_mps), height_agl_m=alt - origin.alt_m,
-        pressure_pa=float(isa_pressure_pa(alt)), temperature_k=288.15 - 0.0065 * alt,
+        pressure_pa=float(isa_pressure_pa(alt)), temperature_k=288.15 - 0.0065 * alt, wind_ned_mps=np.zeros(3),
     )
 
 

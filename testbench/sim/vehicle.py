@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from testbench.config.schema import Scenario, Vehicle
+from testbench.config.schema import Scenario, Vehicle, Wind
 from testbench.core import registry
 from testbench.core.errors import InputError
 from testbench.core.geodesy import geodetic_to_ned
@@ -18,7 +18,7 @@ from testbench.core.interfaces import BuildContext, GeodeticOrigin
 from testbench.core.messages import NavEstimate, RotorCommand, SurfaceCommand
 from testbench.core.rng import RngStreams
 from testbench.core.rotations import euler_to_quat
-from testbench.dynamics.jsbsim_adapter import InitialCondition, JSBSimDynamics
+from testbench.dynamics.jsbsim_adapter import AirMass, InitialCondition, JSBSimDynamics
 from testbench.sim.world_runtime import RunWorld
 
 
@@ -84,6 +84,25 @@ def initial_condition(v: Vehicle, origin: GeodeticOrigin) -> InitialCondition:
     return InitialCondition(pos_ned_m=(float(n), float(e), -float(i.altitude_m)), heading_rad=math.radians(i.heading_deg), airspeed_mps=i.airspeed_mps)
 
 
+# JSBSim's turb-type and MIL-F-8785C probability-of-exceedance indices (FGWinds).
+_TURBULENCE_TYPE = {"milspec": 3, "tustin": 4}
+_SEVERITY_INDEX = {"light": 3, "moderate": 4, "severe": 6}
+
+
+def air_mass(wind: Wind | None, streams: RngStreams, vehicle_id: str) -> AirMass | None:
+    """The scenario's wind as one vehicle's JSBSim air mass (None: calm air). Each vehicle's
+    turbulence has its own seed, drawn from the run's streams by the vehicle's id."""
+    if wind is None:
+        return None
+    t = wind.turbulence
+    if t is None:
+        return AirMass(wind_ned_mps=wind.velocity_ned_mps())
+    seed = int(streams.generator("vehicle", vehicle_id, "turbulence").integers(1, 2**31 - 1))
+    w20 = wind.speed_mps if t.windspeed_at_6m_mps is None else t.windspeed_at_6m_mps
+    return AirMass(wind_ned_mps=wind.velocity_ned_mps(), turbulence_type=_TURBULENCE_TYPE[t.model],
+                   severity_index=_SEVERITY_INDEX[t.severity], windspeed_at_20ft_mps=float(w20), seed=seed)
+
+
 def build_vehicle(scn: Scenario, v: Vehicle, world: RunWorld, streams: RngStreams, scenario_dir: str) -> VehicleRuntime:
     """Construct one vehicle's components (params were validated when the scenario loaded)."""
     origin = world.origin
@@ -93,7 +112,8 @@ def build_vehicle(scn: Scenario, v: Vehicle, world: RunWorld, streams: RngStream
     ctx_sensor = BuildContext(v.id, ids, origin, scn.epoch_year, P, scenario_dir, world)
     ctx_onboard = BuildContext(v.id, ids, origin, scn.epoch_year, P, scenario_dir, None)
 
-    dyn = JSBSimDynamics(v.aircraft, origin, P, terrain_height_fn=world.terrain_fn(), vehicle_id=v.id)
+    dyn = JSBSimDynamics(v.aircraft, origin, P, terrain_height_fn=world.terrain_fn(), vehicle_id=v.id,
+                         air=air_mass(scn.world.wind, streams, v.id))
     sensors = []
     for s in v.sensors:
         name = s.sensor_name

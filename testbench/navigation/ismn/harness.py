@@ -51,7 +51,7 @@ def truth_of(row) -> TruthState:
                       np.array([row.truth_qw, row.truth_qx, row.truth_qy, row.truth_qz]),
                       np.array([row.truth_roll_rad, row.truth_pitch_rad, row.truth_yaw_rad]),
                       np.array([row.truth_p_rps, row.truth_q_rps, row.truth_r_rps]), z, z, 25.0,
-                      float(row.truth_height_agl_m), 101325.0, 288.15)
+                      float(row.truth_height_agl_m), 101325.0, 288.15, z)
 
 
 def build(scenario_path: str, overrides=(), pipeline_over: dict | None = None, matcher_over: dict | None = None,

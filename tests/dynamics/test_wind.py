@@ -1,0 +1,86 @@
+"""Wind and turbulence through JSBSim's own air mass (JSBSimDynamics with an AirMass)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pydantic
+import pytest
+
+from testbench.config.schema import Wind
+from testbench.core.interfaces import GeodeticOrigin
+from testbench.core.messages import RotorCommand
+from testbench.dynamics.catalog import aircraft_meta
+from testbench.dynamics.jsbsim_adapter import AirMass, InitialCondition, JSBSimDynamics
+
+ORIGIN = GeodeticOrigin(math.radians(47.0), math.radians(-99.0), 500.0)
+WESTERLY_6 = (0.0, 6.0, 0.0)  # 6 m/s from 270 deg: the air moves east
+
+
+def test_wind_from_is_meteorological():
+    np.testing.assert_allclose(Wind(speed_mps=6.0, from_deg=270.0).velocity_ned_mps(), WESTERLY_6, atol=1e-12)
+    np.testing.assert_allclose(Wind(speed_mps=5.0, from_deg=0.0).velocity_ned_mps(), (-5.0, 0.0, 0.0), atol=1e-12)
+    for bad in ({"speed_mps": 6.0, "from_deg": 360.0}, {"speed_mps": -1.0, "from_deg": 0.0},
+                {"speed_mps": 6.0, "from_deg": 10.0, "gust_mps": 2.0},
+                {"speed_mps": 6.0, "from_deg": 10.0, "turbulence": {"severity": "strong"}}):
+        with pytest.raises(pydantic.ValidationError):
+            Wind(**bad)
+
+
+def test_fixed_wing_starts_through_the_air_along_its_heading():
+    """Heading north at 25 m/s through a westerly: no sideslip, the ground velocity adds the
+    wind, and the trimmed wing keeps it (a crab: heading north, track east of north)."""
+    dyn = JSBSimDynamics("tb_fixedwing", ORIGIN, 120.0, air=AirMass(wind_ned_mps=WESTERLY_6))
+    truth = dyn.reset(InitialCondition(pos_ned_m=(0.0, 0.0, -300.0), heading_rad=0.0, airspeed_mps=25.0))
+    np.testing.assert_allclose(truth.wind_ned_mps, WESTERLY_6, atol=1e-9)
+    np.testing.assert_allclose(truth.vel_ned_mps[:2], (25.0, 6.0), atol=0.05)
+    assert truth.airspeed_mps == pytest.approx(25.0, abs=0.05)
+    assert abs(dyn.fdm["aero/beta-deg"]) < 0.05
+    dyn.advance(None, 240)  # 2 s with the trim's commands
+    truth = dyn.truth()
+    air_velocity = truth.vel_ned_mps - truth.wind_ned_mps
+    assert np.linalg.norm(air_velocity) == pytest.approx(truth.airspeed_mps, abs=1e-3)
+    assert truth.vel_ned_mps[1] == pytest.approx(6.0, abs=0.3)
+
+
+def test_multirotor_hovers_over_its_start_point_in_wind():
+    """A multirotor's initial velocity is over the ground: at 0 it hovers with the wind for airspeed."""
+    dyn = JSBSimDynamics("tb_quad", ORIGIN, 200.0, air=AirMass(wind_ned_mps=WESTERLY_6))
+    truth = dyn.reset(InitialCondition(pos_ned_m=(0.0, 0.0, -100.0), heading_rad=0.0, airspeed_mps=0.0))
+    np.testing.assert_allclose(truth.vel_ned_mps, 0.0, atol=1e-9)
+    assert truth.airspeed_mps == pytest.approx(6.0, abs=1e-6)
+    # Held at the hover command, the rotors' drag (-c omega v_air) now pushes it downwind.
+    hover = aircraft_meta("tb_quad")["hover_throttle_norm"]
+    dyn.advance(RotorCommand(motors=(hover,) * 4), 400)
+    assert dyn.truth().vel_ned_mps[1] > 0.5
+
+
+def test_calm_air_reports_no_wind():
+    dyn = JSBSimDynamics("tb_quad", ORIGIN, 200.0)
+    truth = dyn.reset(InitialCondition(pos_ned_m=(0.0, 0.0, -100.0)))
+    assert not truth.wind_ned_mps.any() and not truth.wind_ned_mps.flags.writeable
+
+
+def _turbulent_wind(seed: int, seconds: float = 20.0) -> np.ndarray:
+    air = AirMass(wind_ned_mps=WESTERLY_6, turbulence_type=3, severity_index=3, windspeed_at_20ft_mps=6.0, seed=seed)
+    dyn = JSBSimDynamics("tb_fixedwing", ORIGIN, 120.0, air=air)
+    # High enough that the untended wing (trim commands held) never meets the ground.
+    dyn.reset(InitialCondition(pos_ned_m=(0.0, 0.0, -2000.0), heading_rad=0.0, airspeed_mps=25.0))
+    out = []
+    for _ in range(int(seconds * 10)):
+        dyn.advance(None, 12)
+        out.append(dyn.truth().wind_ned_mps)
+    return np.array(out)
+
+
+def test_turbulence_is_seeded_and_of_the_milspec_size():
+    a, b, c = _turbulent_wind(7), _turbulent_wind(7), _turbulent_wind(8)
+    assert np.array_equal(a, b)  # the same seed: bit-identical gusts
+    assert not np.allclose(a, c)
+    gust = a - np.array(WESTERLY_6)
+    # Light turbulence above 2000 ft (MIL-F-8785C fig. 7, probability of exceedance 1e-2):
+    # sigma 2.3 m/s per axis at 2500 m above sea level, scale length 533 m; 20 s at 25 m/s is
+    # one scale length, so only the order of magnitude is tested.
+    rms = np.sqrt((gust**2).mean(axis=0))
+    assert np.all(rms > 0.1) and np.all(rms < 5.0)
