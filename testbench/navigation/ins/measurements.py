@@ -177,15 +177,17 @@ def momentum_drag_per_s(aircraft: dict) -> float:
 
 def drag_specific_force(ekf, f_b_xy_mps2, v_b_xy_mps, mu_per_s: float, sigma_mps2: float):
     """Rotor-drag aiding: the accelerometers' body x, y specific force (2,) m/s^2, averaged
-    over an interval, against h = -mu (1 + s) v_b_xy + b_a_xy (calm air: air and ground
-    velocity agree; s = ekf.drag_scale, the filter's estimate of the scale error of mu), v_b_xy
-    (2,) the nominal body velocity averaged over the same interval.
+    over an interval, against h = -mu (1 + s) v_b_xy + b_a_xy (s = ekf.drag_scale, the
+    filter's estimate of the scale error of mu), v_b_xy (2,) the nominal body velocity through
+    the air averaged over the same interval: C^T (v - w) with the filter's wind states, C^T v
+    without (calm air, air and ground velocity taken as one).
 
-    With C_true = (I + [phi x]) C_nb and v_true = v + dv: v_b_true = C^T v + C^T dv + C^T [v x] phi,
-    so with m = mu (1 + s): H_v = -m S C^T, H_phi = -m S C^T [v x], H_ba = S (S: the body x and
-    y rows), H_s = -mu v_b_xy."""
+    With C_true = (I + [phi x]) C_nb, v_true = v + dv, w_true = w + dw and a = v - w:
+    a_b_true = C^T a + C^T (dv - dw) + C^T [a x] phi, so with m = mu (1 + s): H_v = -m S C^T,
+    H_w = +m (S C^T)_NE, H_phi = -m S C^T [a x], H_ba = S (S: the body x and y rows),
+    H_s = -mu v_b_xy."""
     C = ekf.C_nb
-    v = np.array(ekf.ins.vel)
+    v = air_velocity_ned(ekf) if ekf.wind_states else np.array(ekf.ins.vel)
     v_b = np.asarray(v_b_xy_mps, float)
     mu_eff = mu_per_s * (1.0 + ekf.drag_scale)
     y = np.asarray(f_b_xy_mps2, float) - (-mu_eff * v_b + ekf.b_a[:2])
@@ -195,6 +197,8 @@ def drag_specific_force(ekf, f_b_xy_mps2, v_b_xy_mps, mu_per_s: float, sigma_mps
     H[:, IA] = -mu_eff * Ct @ skew(v)
     H[:, IBA] = np.eye(3)[:2]
     H[:, IDS] = -mu_per_s * v_b
+    if ekf.wind_states:
+        H[:, IW] = mu_eff * Ct[:, :2]
     return y, H, np.eye(2) * sigma_mps2**2
 
 

@@ -90,8 +90,8 @@ class InsEkfNavigator(Navigator):
             scale_corr_angle_rad=math.radians(params.scale_error_angle_deg),
             drag_scale_sigma=self.drag_scale_sigma,
             drag_scale_tau_s=math.inf if params.drag_aiding is None else params.drag_aiding.scale_tau_s,
-            wind_states=params.airspeed_aiding is not None,
-            wind_rw_mps_sqrt_s=0.0 if params.airspeed_aiding is None else params.airspeed_aiding.wind_rw_mps_sqrt_s,
+            wind_states=self._wind_settings() is not None,
+            wind_rw_mps_sqrt_s=0.0 if self._wind_settings() is None else self._wind_settings().wind_rw_mps_sqrt_s,
             appearance_sigma_m=params.fix_appearance_sigma_m,
         )
         self._mag_model: OnboardMagneticModel | None = None
@@ -104,6 +104,7 @@ class InsEkfNavigator(Navigator):
         self._last_baro_ok_t_s: float | None = None  # last accepted barometer sample
         self._gnss_guard = None if params.gnss_monitor is None else GnssSpoofGuard(params.gnss_monitor)
         self.gnss_monitor = None if self._gnss_guard is None else self._gnss_guard.monitor
+        self.estimates_wind = self.ekf.wind_states
         d = params.drag_aiding
         self._drag_mu_per_s = None if d is None else (d.coefficient_per_s or meas.momentum_drag_per_s(aircraft or {}))
         self._drag_acc = [0.0, 0.0, 0.0, 0.0, 0]  # sums over the interval: f_bx, f_by, v_bx, v_by; count
@@ -145,7 +146,7 @@ class InsEkfNavigator(Navigator):
 
     def initial_covariance(self) -> np.ndarray:
         """P0 (ekf.n, ekf.n) from Params.initial_sigma (GNSS and fix error states and the drag scale:
-        their steady state; the wind, with airspeed aiding: airspeed_aiding.wind_sigma_mps)."""
+        their steady state; the wind, with wind states: their aiding's wind_sigma_mps)."""
         s = self.params.initial_sigma
         d = np.empty(self.ekf.n)
         d[IP] = s.pos_m
@@ -161,11 +162,21 @@ class InsEkfNavigator(Navigator):
         d[IGN] = self.params.gnss_error_sigma_m
         d[IFX] = self.fix_error_sigma_ned_m
         d[IDS] = self.drag_scale_sigma
-        if self.params.airspeed_aiding is not None:
-            d[IW] = self.params.airspeed_aiding.wind_sigma_mps
+        if self._wind_settings() is not None:
+            d[IW] = self._wind_settings().wind_sigma_mps
         if self.ekf.i_app is not None:
             d[self.ekf.i_app] = self.params.fix_appearance_sigma_m
         return np.diag(d**2)
+
+    def _wind_settings(self):
+        """The aiding whose wind_sigma_mps / wind_rw_mps_sqrt_s set the wind states (airspeed
+        aiding, or drag aiding with wind_states), or None: no wind states."""
+        p = self.params
+        if p.airspeed_aiding is not None:
+            return p.airspeed_aiding
+        if p.drag_aiding is not None and p.drag_aiding.wind_states:
+            return p.drag_aiding
+        return None
 
     def appearance_gain(self, quality: float) -> float:
         """g(q) (dimensionless) of a fix of quality q on the appearance states
@@ -186,11 +197,15 @@ class InsEkfNavigator(Navigator):
             self._accumulate_drag(float(imu.t_s), imu.f_ib_b_mps2)
 
     def _accumulate_drag(self, t_s: float, f_ib_b_mps2) -> None:
-        """Sum the raw body x, y specific force and the nominal body x, y velocity; every
-        drag_aiding.interval_s fuse their means (measurements.drag_specific_force)."""
+        """Sum the raw body x, y specific force and the nominal body x, y velocity (through
+        the air, with wind states); every drag_aiding.interval_s fuse their means
+        (measurements.drag_specific_force)."""
         ins = self.ekf.ins
         qw, qx, qy, qz = ins.q
         vn, ve, vd = ins.vel
+        if self.ekf.wind_states:  # the velocity through the air
+            vn -= float(self.ekf.wind_ne_mps[0])
+            ve -= float(self.ekf.wind_ne_mps[1])
         acc = self._drag_acc
         acc[0] += float(f_ib_b_mps2[0])
         acc[1] += float(f_ib_b_mps2[1])
@@ -289,10 +304,13 @@ class InsEkfNavigator(Navigator):
             cov_vel_ned_m2s2=P[IV, IV].copy(),
             cov_att_rad2=P[IA, IA].copy(),
             airspeed_mps=self._airspeed,
+            wind_ne_mps=np.array(ekf.wind_ne_mps, float) if ekf.wind_states else None,
+            cov_wind_ne_m2s2=P[IW, IW].copy() if ekf.wind_states else None,
         )
         for a in (est.pos_ned_m, est.vel_ned_mps, est.q_nb_wxyz, est.rpy_rad, est.omega_b_rps,
-                  est.cov_pos_ned_m2, est.cov_vel_ned_m2s2, est.cov_att_rad2):
-            a.flags.writeable = False
+                  est.cov_pos_ned_m2, est.cov_vel_ned_m2s2, est.cov_att_rad2, est.wind_ne_mps, est.cov_wind_ne_m2s2):
+            if a is not None:
+                a.flags.writeable = False
         self._estimate = est
         return est
 

@@ -55,8 +55,14 @@ class DragAiding(ParamsModel):
     measure velocity, and the INS cannot drift in velocity (and, through it, in course) once
     GNSS is gone. Fused every interval_s with the specific force and the nominal body velocity
     averaged over the interval. Not for fixed wings (no such drag law, see AirspeedAiding), nor
-    in wind (the model gives air-relative velocity, which this aiding takes for the velocity
-    over the ground), nor on the ground."""
+    on the ground.
+
+    The drag measures the velocity through the air. Without wind states (the default) the
+    filter takes it for the velocity over the ground, which holds only in calm air: in a wind
+    the estimate drifts with the air. With wind_states the filter carries the horizontal wind
+    as two states (as AirspeedAiding does), learnt while GNSS or position fixes tie the
+    velocity over the ground, and held, as a random walk, after; what the wind does then
+    (turbulence, a change of wind) is beyond any drag model's reach."""
 
     coefficient_per_s: float | None = pydantic.Field(None, gt=0)
     """mu (1/s); None: from the aircraft's sidecar at hover (measurements.momentum_drag_per_s)."""
@@ -79,6 +85,16 @@ class DragAiding(ParamsModel):
     lost (0.01: NEES 1.4, 1.95 m, 8.2 m). 0: mu taken as exact."""
     scale_tau_s: float = pydantic.Field(60.0, gt=0)
     """Correlation time of that scale error (s)."""
+    wind_states: bool = False
+    """Carry the horizontal wind as two filter states: the drag is fused against the velocity
+    through the air, v - w (False: calm air assumed, w = 0)."""
+    wind_sigma_mps: float = pydantic.Field(3.0, gt=0)
+    """Initial uncertainty of the wind, per horizontal axis (m/s), with wind_states."""
+    wind_rw_mps_sqrt_s: float = pydantic.Field(0.05, ge=0)
+    """Random walk of the wind (m/s/sqrt(s)), with wind_states. A Dryden gust field of sigma s
+    and correlation time tau (its scale length over the airspeed: 263 m at 100 m height, tens
+    of seconds for a multirotor) walks about s sqrt(2 / tau) per sqrt(s): 0.2 for light
+    turbulence (1 m/s, 40 s)."""
 
 
 class AirspeedAiding(ParamsModel):

@@ -99,12 +99,12 @@ def _ekf_at(x_hat):
 def _numeric_H(ekf, model, steps):
     """H = -d y / d dx, evaluating the residual with the nominal replaced by nominal (+) dx."""
     y0 = model(ekf)[0]
-    H = np.empty((y0.size, N_STATES))
-    for j in range(N_STATES):
+    H = np.empty((y0.size, ekf.n))
+    for j in range(ekf.n):
         ys = []
         for sign in (1.0, -1.0):
             e = copy.deepcopy(ekf)
-            d = np.zeros(N_STATES)
+            d = np.zeros(ekf.n)
             d[j] = sign * steps[j]
             e.inject(d)
             ys.append(model(e)[0])
@@ -129,8 +129,9 @@ B_NED = np.array([17e-6, 1e-6, 52e-6])
         # Magnetic heading levelled with the nominal tilt: the field as the unperturbed nominal
         # attitude would read it (y = 0), so that the tilt columns are first-order exact.
         ("mag_heading", lambda e: meas.mag_heading(e, quat_to_dcm(X_HAT[4]).T @ B_NED, B_NED, 0.01)),
-        # Rotor drag: the body velocity the residual uses is the (perturbed) nominal's own.
-        ("drag", lambda e: meas.drag_specific_force(e, [-1.2, 0.4], (e.C_nb.T @ np.array(e.ins.vel))[:2], 0.365, 0.05)),
+        # Rotor drag with wind states: the body velocity through the air the residual uses is
+        # the (perturbed) nominal's own, v - w.
+        ("drag", lambda e: meas.drag_specific_force(e, [-1.2, 0.4], (e.C_nb.T @ meas.air_velocity_ned(e))[:2], 0.365, 0.05)),
         # Airspeed aiding: the speed and the body-y velocity through the air, v - wind.
         ("airspeed", lambda e: meas.true_airspeed(e, 46.0, 0.3)),
         ("sideslip", lambda e: meas.zero_sideslip(e, 0.01)),
@@ -143,6 +144,22 @@ def test_H_matches_finite_differences(name, model):
     # Entries ~ y / R (~1e-6) from the residual's own scale factors are second order.
     scale = np.abs(H).max()
     np.testing.assert_allclose(H, H_num, rtol=1e-5, atol=3e-6 * scale, err_msg=name)
+
+
+def test_calm_air_drag_H_matches_finite_differences():
+    """Rotor drag without wind states (calm air): the ground velocity is the air velocity."""
+    noise = imu_noise_from_datasheet(0.15, 7.0, 0.02, 14.0)
+    ekf = ErrorStateEKF(noise)
+    lat, lon, h, v, q = X_HAT
+    ekf.initialize(0.0, lat, lon, h, v, q, np.eye(ekf.n))
+    ekf.drag_scale = 0.02
+
+    def model(e):
+        return meas.drag_specific_force(e, [-1.2, 0.4], (e.C_nb.T @ np.array(e.ins.vel))[:2], 0.365, 0.05)
+
+    H = model(ekf)[1]
+    assert H.shape == (2, ekf.n) and not ekf.wind_states
+    np.testing.assert_allclose(H, _numeric_H(ekf, model, STEPS), rtol=1e-5, atol=3e-6 * np.abs(H).max())
 
 
 def test_reset_jacobian_matches_finite_differences():
