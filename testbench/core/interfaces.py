@@ -94,6 +94,10 @@ class Navigator(abc.ABC):
     the vehicle's own "navigation/alignment" stream (e.g. for drawing the alignment error);
     accept **kwargs for what a navigator does not use."""
 
+    estimates_wind: bool = False
+    """Whether its estimates carry the wind (NavEstimate.wind_ne_mps); the record then has
+    the wind columns."""
+
     @abc.abstractmethod
     def initialize(self, t_s: float, initial: NavEstimate) -> None:
         """Start from an initial estimate (e.g. the GNSS/ground alignment at take-off)."""

@@ -8,6 +8,7 @@ from typing import Any
 
 from testbench.reporting import figures_events as fe
 from testbench.reporting import figures_nav as fn
+from testbench.reporting import figures_wind as fw
 from testbench.reporting.model import FigureItem, Report, Section, Table
 from testbench.scoring import MetricsResult, ThresholdResult, check_thresholds, load_run, score_record
 from testbench.scoring.record_io import RunRecord
@@ -23,7 +24,7 @@ KEY_METRICS = (
     "nav.denied.horizontal_error_m.mean", "nav.denied.horizontal_error_m.max", "nav.denied.duration_s",
     "nav.spoofed.horizontal_error_m.mean", "nav.spoofed.horizontal_error_m.max", "nav.spoofed.gnss_accept_rate",
     "nav.spoofed.gnss_captured_s",
-    "nav.nees.position.mean", "nav.nees.position.frac_in_95",
+    "nav.nees.position.mean", "nav.nees.position.frac_in_95", "nav.wind_error_mps.mean", "nav.wind_error_mps.p95",
     "control.altitude_error_m.rms", "control.cross_track_error_m.rms", "control.airspeed_error_mps.rms",
     "control.bank_max_deg",
     "ismn.fix_rate", "ismn.accept_rate", "ismn.latency_ms.mean", "ismn.latency_ms.p95",
@@ -67,6 +68,11 @@ def _config_table(record: RunRecord) -> Table:
     for vid, windows in (info.get("gnss_spoofed_windows") or {}).items():
         if windows:  # listed only where a spoofer acts
             rows.append([f"GNSS spoofed {vid}", ", ".join(f"{a:g}–{b:g} s" for a, b in windows)])
+    wind = (info.get("world") or {}).get("wind")
+    if isinstance(wind, dict):
+        turb = wind.get("turbulence")
+        rows.append(["wind", f"{fmt(wind.get('speed_mps'))} m/s from {fmt(wind.get('from_deg'))}°" + (
+            f", {turb.get('severity')} turbulence ({turb.get('model')})" if isinstance(turb, dict) else ", no turbulence")])
     ph = record.phases
     rows.append(["turning phase", f"|bank| > {ph['turn_bank_deg']:g}° or |turn rate| > {ph['turn_rate_deg_s']:g}°/s"])
     if "same_raster" in info:
@@ -154,7 +160,8 @@ def build_report(run_dir: str | Path, result: MetricsResult | None = None) -> Re
     summary_rows = _metric_rows(flat, KEY_METRICS)
     vt = _vehicle_table(result)
     sections.append(Section("Summary", "summary", [t for t in (Table("Key metrics", ["metric", "value"], summary_rows), vt) if t]))
-    nav_figs = _figs(fn.trajectory_figure(record), fn.error_time_figures(record), fn.cdf_figure(record))
+    nav_figs = _figs(fn.trajectory_figure(record), fn.error_time_figures(record), fn.cdf_figure(record),
+                     fw.wind_figures(record))
     sections.append(Section("Navigation", "navigation", figures=nav_figs))
     control_rows = _metric_rows(flat, [k for k in flat if k.startswith("control.") and not k.endswith(".n")])
     ctrl_fig = fn.control_figure(record)

@@ -141,6 +141,22 @@ def attitude_nees(tel: pd.DataFrame) -> np.ndarray:
     return _diag_nees(err, sig)
 
 
+def wind_errors_ne_mps(tel: pd.DataFrame) -> np.ndarray | None:
+    """(n, 2) estimated minus true horizontal wind (north, east, m/s), NaN on rows without an
+    estimate; None when the record has no wind columns or no row with an estimate."""
+    if "nav_wind_n_mps" not in tel.columns:
+        return None
+    err = np.stack([column(tel, f"nav_wind_{a}_mps") - column(tel, f"truth_wind_{a}_mps") for a in ("n", "e")], axis=1)
+    return err if np.isfinite(err).all(axis=1).any() else None
+
+
+def wind_nees(tel: pd.DataFrame) -> np.ndarray:
+    """Horizontal wind NEES per row (2 dof, diagonal sigmas), shape (n,)."""
+    err = wind_errors_ne_mps(tel)
+    sig = np.stack([column(tel, f"nav_sigma_wind_{a}_mps") for a in ("n", "e")], axis=1)
+    return _diag_nees(err, sig)
+
+
 def _subset(e3: np.ndarray, eh: np.ndarray, pct: np.ndarray, dur: np.ndarray, mask: np.ndarray) -> NavSubset | None:
     if not mask.any():
         return None
@@ -249,6 +265,11 @@ def compute_nav(record: RunRecord) -> NavMetrics | None:
         s = chi_square_stats(fn(tel), 3)
         if s is not None:
             nees[name] = s
+    wind_err = wind_errors_ne_mps(tel)
+    if wind_err is not None:
+        s = chi_square_stats(wind_nees(tel), 2)
+        if s is not None:
+            nees["wind"] = s
 
     return NavMetrics(
         position_error_m=error_stats(np.linalg.norm(e3, axis=1)),
@@ -262,4 +283,5 @@ def compute_nav(record: RunRecord) -> NavMetrics | None:
         nees=nees,
         nis=compute_nis(record),
         lost_at_s=lost_at_s(tel),
+        wind_error_mps=None if wind_err is None else error_stats(np.hypot(wind_err[:, 0], wind_err[:, 1])),
     )

@@ -128,7 +128,9 @@ class NavMetrics(_Section):
     nees: "position" (3 dof, with the recorded north-east covariance), "velocity" and
     "attitude" (3 dof, diagonal sigmas) -> ChiSquareStats; nis: correction kind -> NisStats;
     lost_at_s: when the navigator was lost (metrics_nav.lost_at_s: its position error stayed
-    beyond a 5.5-sigma bound of its own covariance for 10 s), None if never.
+    beyond a 5.5-sigma bound of its own covariance for 10 s), None if never;
+    wind_error_mps: |estimated - true| horizontal wind (m/s; the truth with its turbulence)
+    over the rows where the navigator estimates the wind (with nees "wind", 2 dof), else None.
     """
 
     position_error_m: ErrorStats | None = None
@@ -142,6 +144,7 @@ class NavMetrics(_Section):
     nees: Mapping[str, ChiSquareStats] = field(default_factory=dict)
     nis: Mapping[str, NisStats] = field(default_factory=dict)
     lost_at_s: float | None = None
+    wind_error_mps: ErrorStats | None = None
 
 
 @dataclass(frozen=True)

@@ -40,14 +40,24 @@ TELEMETRY_FLOAT_COLUMNS = (
     "gd_target_n_m", "gd_target_e_m", "gd_target_d_m", "gd_bank_cmd_rad",
 )
 
+# With Recorder(wind_columns=True): the wind the vehicle met (truth, NED) and its navigator's
+# estimate of the horizontal wind with its sigmas (NaN where the navigator estimates none).
+TELEMETRY_WIND_COLUMNS = (
+    "truth_wind_n_mps", "truth_wind_e_mps", "truth_wind_d_mps",
+    "nav_wind_n_mps", "nav_wind_e_mps", "nav_sigma_wind_n_mps", "nav_sigma_wind_e_mps",
+)
+
 _NAN = float("nan")
 
 
 class Recorder:
-    """Accumulates telemetry rows and event rows for one run."""
+    """Accumulates telemetry rows and event rows for one run; wind_columns: add
+    TELEMETRY_WIND_COLUMNS (a scenario with wind, or a navigator that estimates it)."""
 
-    def __init__(self) -> None:
-        self._tel: dict[str, list] = {c: [] for c in TELEMETRY_FLOAT_COLUMNS}
+    def __init__(self, wind_columns: bool = False) -> None:
+        self._wind_columns = bool(wind_columns)
+        self._float_columns = TELEMETRY_FLOAT_COLUMNS + (TELEMETRY_WIND_COLUMNS if wind_columns else ())
+        self._tel: dict[str, list] = {c: [] for c in self._float_columns}
         self._vehicle: list[str] = []
         self._leg: list[int] = []
         self._on_leg: list[bool] = []
@@ -105,10 +115,22 @@ class Recorder:
         app("gd_target_e_m", s.target_ned_m[1])
         app("gd_target_d_m", s.target_ned_m[2])
         app("gd_bank_cmd_rad", s.bank_cmd_rad)
+        if self._wind_columns:
+            self._record_wind(truth, est)
         self._vehicle.append(vehicle_id)
         self._leg.append(int(s.leg_index))
         self._on_leg.append(bool(s.on_leg))
         self._gnss.append(bool(gnss_available))
+
+    def _record_wind(self, truth: TruthState, est: NavEstimate) -> None:
+        c = self._tel
+        for k, v in zip(("truth_wind_n_mps", "truth_wind_e_mps", "truth_wind_d_mps"), truth.wind_ned_mps):
+            c[k].append(float(v))
+        w, W = est.wind_ne_mps, est.cov_wind_ne_m2s2
+        c["nav_wind_n_mps"].append(_NAN if w is None else float(w[0]))
+        c["nav_wind_e_mps"].append(_NAN if w is None else float(w[1]))
+        c["nav_sigma_wind_n_mps"].append(_NAN if W is None else math.sqrt(max(W[0][0], 0.0)))
+        c["nav_sigma_wind_e_mps"].append(_NAN if W is None else math.sqrt(max(W[1][1], 0.0)))
 
     def correction(self, vehicle_id: str, info: CorrectionInfo) -> None:
         """One navigator correction (what was done with one measurement)."""
@@ -132,7 +154,7 @@ class Recorder:
 
     def telemetry_table(self) -> pa.Table:
         cols: dict[str, pa.Array] = {"vehicle_id": pa.array(self._vehicle, pa.string())}
-        for k in TELEMETRY_FLOAT_COLUMNS:
+        for k in self._float_columns:
             cols[k] = pa.array(self._tel[k], pa.float64())
         cols["gd_leg_index"] = pa.array(self._leg, pa.int64())
         cols["gd_on_leg"] = pa.array(self._on_leg, pa.bool_())

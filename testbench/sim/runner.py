@@ -73,7 +73,9 @@ def build_engine(
         for i, rt in enumerate(vehicles)
     }
     record_every = decimation(scn.record_rate_hz, scn.physics_rate_hz, "record_rate_hz")
-    recorder = Recorder()
+    # Wind columns where there is wind to score or an estimate of it (records of calm-air
+    # runs whose navigators carry no wind keep their columns as before).
+    recorder = Recorder(wind_columns=scn.world.wind is not None or any(rt.navigator.estimates_wind for rt in vehicles))
     engine = Engine(
         vehicles, world, scn.physics_rate_hz, scn.duration_s, record_every, recorder,
         realtime=realtime, on_progress=on_progress, frame_sink=frame_sink, formation=scn.formation,
