@@ -42,6 +42,7 @@ REPO = Path(__file__).resolve().parents[2]
 GATED = {
     "fixedwing_racetrack": None,
     "multirotor_waypoints": None,
+    "multirotor_wind_drag": None,
     "ins_only_800m": 120.0,
     "paper_ismn_800m": 120.0,
     "paper_ismn_spoofed": 120.0,
