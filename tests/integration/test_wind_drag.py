@@ -38,15 +38,19 @@ def test_drag_aided_ins_learns_a_steady_wind(tmp_path):
     assert nav["nees"]["wind"]["mean"] > 0.0
 
 
+# Without wind states the scenario's gate on nav.wind_error_mps has no metric to read: exit 3.
+WITHOUT_WIND_STATES = "vehicles.quad0.navigation.params.drag_aiding.wind_states=false"
+
+
 def test_without_wind_states_the_record_has_the_truth_wind_only(tmp_path):
-    assert _run(tmp_path / "r", "duration_s=5", "vehicles.quad0.navigation.params.drag_aiding.wind_states=false") == 0
+    assert _run(tmp_path / "r", "duration_s=5", WITHOUT_WIND_STATES) == 3
     tel = pq.read_table(tmp_path / "r" / "telemetry.parquet").to_pandas()
     assert tel.truth_wind_e_mps.abs().max() > 0.0 and tel.nav_wind_n_mps.isna().all()
     assert "wind_error_mps" not in json.loads((tmp_path / "r" / "metrics.json").read_text())["nav"]
 
 
 def test_calm_air_records_keep_their_columns(tmp_path):
-    assert _run(tmp_path / "r", "duration_s=3", "world.wind=null", "vehicles.quad0.navigation.params.drag_aiding.wind_states=false") == 0
+    assert _run(tmp_path / "r", "duration_s=3", "world.wind=null", WITHOUT_WIND_STATES) == 3
     cols = pq.read_schema(tmp_path / "r" / "telemetry.parquet").names
     assert not [c for c in cols if "wind" in c]
 
