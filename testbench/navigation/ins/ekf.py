@@ -394,6 +394,35 @@ class ErrorStateEKF:
         return CorrectionInfo(t_s=info.t_s, kind=info.kind, innovation=info.innovation,
                               innovation_cov=info.innovation_cov, nis=nis_before, accepted=True)
 
+    def reset_wind(self, kind: str, t_s: float, y, H, R) -> CorrectionInfo:
+        """Re-acquire the wind from a measurement of the velocity through the air (rotor drag:
+        residual y (m,), H (m, n) with its wind columns, R (m, m)) that the gate has kept
+        refusing: the wind moved further than its covariance allowed (a gust front, a change of
+        wind), and a filter that refuses every such sample never learns it.
+
+        The wind block of P grows by what the disagreement says, H_w^+ (y y^T + R) H_w^+T with
+        H_w^+ the pseudo-inverse of H's wind columns (the wind change that would explain y, and
+        the measurement's noise mapped alike); its cross-covariances are kept, since the
+        velocity's error is still tied to the wind's through every drag sample fused before
+        (clearing them made the velocity look known on its own: the filter overconfident, and
+        lost in one of three runs). Then the measurement is fused without the gate. The
+        returned info carries the NIS the gate saw before the reset, and accepted=True. Needs
+        the wind states."""
+        if not self.wind_states:
+            raise ValueError("reset_wind needs the filter's wind states")
+        self.flush()
+        y = np.atleast_1d(np.asarray(y, float))
+        H = np.atleast_2d(np.asarray(H, float))
+        R = np.atleast_2d(np.asarray(R, float))
+        nis_before = float(y @ np.linalg.solve(H @ self.P @ H.T + R, y))
+        Hw_pinv = np.linalg.pinv(H[:, IW])
+        P = self.P.copy()
+        P[IW, IW] += Hw_pinv @ (np.outer(y, y) + R) @ Hw_pinv.T
+        self.P = 0.5 * (P + P.T)
+        info = self.update(kind, t_s, y, H, R, gate=False)
+        return CorrectionInfo(t_s=info.t_s, kind=info.kind, innovation=info.innovation,
+                              innovation_cov=info.innovation_cov, nis=nis_before, accepted=True)
+
     def inject(self, dx: np.ndarray) -> None:
         """Nominal <- nominal (+) dx (n,)."""
         ins = self.ins

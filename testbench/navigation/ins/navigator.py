@@ -109,6 +109,9 @@ class InsEkfNavigator(Navigator):
         self._drag_mu_per_s = None if d is None else (d.coefficient_per_s or meas.momentum_drag_per_s(aircraft or {}))
         self._drag_acc = [0.0, 0.0, 0.0, 0.0, 0]  # sums over the interval: f_bx, f_by, v_bx, v_by; count
         self._drag_t0_s: float | None = None
+        self._last_drag_ok_t_s: float | None = None  # last drag sample the gate took
+        self.wind_resets = 0
+        """How many times the wind was re-acquired from refused drag samples (reset_wind)."""
         # The last estimate() (None: the filter moved since). Aids, the controller and the
         # recorder all ask for it at a tick; in a ten-vehicle swarm building it each time was
         # a tenth of the run.
@@ -218,9 +221,18 @@ class InsEkfNavigator(Navigator):
         if t_s - self._drag_t0_s < self.params.drag_aiding.interval_s - 1e-9:
             return
         n = acc[4]
+        d = self.params.drag_aiding
         y, H, R = meas.drag_specific_force(self.ekf, (acc[0] / n, acc[1] / n), (acc[2] / n, acc[3] / n),
-                                           self._drag_mu_per_s, self.params.drag_aiding.sigma_mps2)
-        self.ekf.update("drag", t_s, y, H, R)
+                                           self._drag_mu_per_s, d.sigma_mps2)
+        if self.ekf.update("drag", t_s, y, H, R).accepted or self._last_drag_ok_t_s is None:
+            self._last_drag_ok_t_s = t_s
+        elif (self.ekf.wind_states and d.wind_reset_after_s is not None
+              and t_s - self._last_drag_ok_t_s >= d.wind_reset_after_s - 1e-9):
+            info = self.ekf.reset_wind("drag:wind_reset", t_s, y, H, R)
+            log.info("%s: t=%.1f s: wind re-acquired from the drag after %.1f s of refused samples (NIS %.1f)",
+                     self.ctx.vehicle_id, t_s, t_s - self._last_drag_ok_t_s, info.nis)
+            self._last_drag_ok_t_s = t_s
+            self.wind_resets += 1
         self._drag_acc = [0.0, 0.0, 0.0, 0.0, 0]
         self._drag_t0_s = None
 
@@ -370,7 +382,8 @@ class InsEkfNavigator(Navigator):
     # The navigator's state a rewind of the spoofing monitor restores (gnss_guard.py): the
     # filter and the bookkeeping of its aids.
     ROLLBACK_ATTRS = ("ekf", "_airspeed", "_last_airspeed_fused_t_s", "_last_gnss_t", "_last_fix_ok_t_s",
-                      "_last_gnss_ok_t_s", "_last_baro_ok_t_s", "_drag_acc", "_drag_t0_s")
+                      "_last_gnss_ok_t_s", "_last_baro_ok_t_s", "_drag_acc", "_drag_t0_s", "_last_drag_ok_t_s",
+                      "wind_resets")
 
     def _correct_airspeed(self, airspeed_mps: float, t: float) -> CorrectionInfo | None:
         """Fuse the true airspeed and, unless sideslip_sigma_deg is None, zero sideslip as one
