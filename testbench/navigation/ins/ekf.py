@@ -394,11 +394,12 @@ class ErrorStateEKF:
         return CorrectionInfo(t_s=info.t_s, kind=info.kind, innovation=info.innovation,
                               innovation_cov=info.innovation_cov, nis=nis_before, accepted=True)
 
-    def reset_wind(self, kind: str, t_s: float, y, H, R) -> CorrectionInfo:
-        """Re-acquire the wind from a measurement of the velocity through the air (rotor drag:
-        residual y (m,), H (m, n) with its wind columns, R (m, m)) that the gate has kept
-        refusing: the wind moved further than its covariance allowed (a gust front, a change of
-        wind), and a filter that refuses every such sample never learns it.
+    def reset_wind(self, kind: str, t_s: float, y, H, R, elapsed_s: float = 0.0) -> CorrectionInfo:
+        """Re-acquire the wind from a measurement of the velocity through the air (rotor drag,
+        airspeed and sideslip: residual y (m,), H (m, n) with its wind columns, R (m, m)) that the gate has kept
+        refusing (for elapsed_s seconds; the reset does not depend on it): the wind moved
+        further than its covariance allowed (a gust front, a change of wind), and a filter
+        that refuses every such sample never learns it.
 
         The wind block of P grows by what the disagreement says, H_w^+ (y y^T + R) H_w^+T with
         H_w^+ the pseudo-inverse of H's wind columns (the wind change that would explain y, and

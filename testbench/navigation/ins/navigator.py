@@ -110,6 +110,7 @@ class InsEkfNavigator(Navigator):
         self._drag_acc = [0.0, 0.0, 0.0, 0.0, 0]  # sums over the interval: f_bx, f_by, v_bx, v_by; count
         self._drag_t0_s: float | None = None
         self._last_drag_ok_t_s: float | None = None  # last drag sample the gate took
+        self._last_airspeed_ok_t_s: float | None = None  # last airspeed sample the gate took
         self.wind_resets = 0
         """How many times the wind was re-acquired from refused drag samples (reset_wind)."""
         # The last estimate() (None: the filter moved since). Aids, the controller and the
@@ -224,15 +225,8 @@ class InsEkfNavigator(Navigator):
         d = self.params.drag_aiding
         y, H, R = meas.drag_specific_force(self.ekf, (acc[0] / n, acc[1] / n), (acc[2] / n, acc[3] / n),
                                            self._drag_mu_per_s, d.sigma_mps2)
-        if self.ekf.update("drag", t_s, y, H, R).accepted or self._last_drag_ok_t_s is None:
-            self._last_drag_ok_t_s = t_s
-        elif (self.ekf.wind_states and d.wind_reset_after_s is not None
-              and t_s - self._last_drag_ok_t_s >= d.wind_reset_after_s - 1e-9):
-            info = self.ekf.reset_wind("drag:wind_reset", t_s, y, H, R)
-            log.info("%s: t=%.1f s: wind re-acquired from the drag after %.1f s of refused samples (NIS %.1f)",
-                     self.ctx.vehicle_id, t_s, t_s - self._last_drag_ok_t_s, info.nis)
-            self._last_drag_ok_t_s = t_s
-            self.wind_resets += 1
+        reset_after_s = d.wind_reset_after_s if self.ekf.wind_states and d.wind_reset_after_s else 0.0
+        self._last_drag_ok_t_s = self._fuse_air_relative("drag", t_s, y, H, R, self._last_drag_ok_t_s, reset_after_s)[1]
         self._drag_acc = [0.0, 0.0, 0.0, 0.0, 0]
         self._drag_t0_s = None
 
@@ -383,7 +377,7 @@ class InsEkfNavigator(Navigator):
     # filter and the bookkeeping of its aids.
     ROLLBACK_ATTRS = ("ekf", "_airspeed", "_last_airspeed_fused_t_s", "_last_gnss_t", "_last_fix_ok_t_s",
                       "_last_gnss_ok_t_s", "_last_baro_ok_t_s", "_drag_acc", "_drag_t0_s", "_last_drag_ok_t_s",
-                      "wind_resets")
+                      "_last_airspeed_ok_t_s", "wind_resets")
 
     def _correct_airspeed(self, airspeed_mps: float, t: float) -> CorrectionInfo | None:
         """Fuse the true airspeed and, unless sideslip_sigma_deg is None, zero sideslip as one
@@ -399,7 +393,21 @@ class InsEkfNavigator(Navigator):
         if a.sideslip_sigma_deg is not None:
             yb, Hb, Rb = meas.zero_sideslip(self.ekf, a.sideslip_sigma_deg * DEG_TO_RAD)
             y, H, R = np.concatenate([y, yb]), np.vstack([H, Hb]), np.diag([R[0, 0], Rb[0, 0]])
-        return self.ekf.update("airspeed", t, y, H, R)
+        info, self._last_airspeed_ok_t_s = self._fuse_air_relative(
+            "airspeed", t, y, H, R, self._last_airspeed_ok_t_s, a.wind_reset_after_s or 0.0)
+        return info
+
+    def _fuse_air_relative(self, kind: str, t: float, y, H, R, last_ok_t_s: float | None,
+                           reset_after_s: float) -> tuple[CorrectionInfo, float | None]:
+        """Fuse a measurement of the velocity through the air (rotor drag, airspeed) through
+        the gate; after reset_after_s (> 0; 0: never) of refusals, re-acquire the wind from it
+        (ErrorStateEKF.reset_wind). Returns (info, the new last-accepted time)."""
+        info, ok_t_s = self._update_or_reset(kind, t, y, H, R, last_ok_t_s, None, reset_after_s, self.ekf.reset_wind)
+        if info.kind.endswith(":reset"):
+            self.wind_resets += 1
+            log.info("%s: t=%.1f s: wind re-acquired from the %s after %.1f s of refused samples (NIS %.1f)",
+                     self.ctx.vehicle_id, t, kind, t - last_ok_t_s, info.nis)
+        return info, ok_t_s
 
     def _correct_baro(self, baro: BaroSample, t: float) -> CorrectionInfo:
         """Fuse a barometric altitude through the gate; after baro_reset_after_s of rejections

@@ -92,7 +92,7 @@ class DragAiding(ParamsModel):
     """Initial uncertainty of the wind, per horizontal axis (m/s), with wind_states."""
     wind_reset_after_s: float | None = pydantic.Field(5.0, gt=0)
     """With wind_states: after this long with every drag sample refused by the gate, the
-    wind's covariance is set from the disagreement and the sample fused (ErrorStateEKF.reset_wind;
+    wind's covariance grows by the disagreement and the sample is fused (ErrorStateEKF.reset_wind;
     None: never). Without it a gust that outruns the wind's sigma locks the drag out for good
     (multirotor_wind_drag, seed 1: 22 % of the samples taken at 270-300 s, NIS median 37, the
     wind estimate held 5 m/s off)."""
@@ -127,7 +127,13 @@ class AirspeedAiding(ParamsModel):
     wind_sigma_mps: float = pydantic.Field(3.0, gt=0)
     """Initial uncertainty of the wind, per horizontal axis (m/s)."""
     wind_rw_mps_sqrt_s: float = pydantic.Field(0.05, ge=0)
-    """Random walk of the wind (m/s/sqrt(s)): 0.5 m/s over 100 s as the vehicle flies through it."""
+    """Random walk of the wind (m/s/sqrt(s)): 0.5 m/s over 100 s as the vehicle flies through
+    it, for a steady wind. In turbulence the gusts walk faster, about sigma sqrt(2 / tau) with
+    tau the scale length over the airspeed: light turbulence at 800 m (2.2 m/s, 533 m, 21 s at
+    25 m/s) ~0.7 (docs/measurements.md, "Wind")."""
+    wind_reset_after_s: float | None = pydantic.Field(5.0, gt=0)
+    """After this long with every airspeed sample refused by the gate, the wind's covariance
+    grows by the disagreement and the sample is fused (ErrorStateEKF.reset_wind; None: never)."""
     interval_s: float = pydantic.Field(0.2, gt=0, le=1.0)
     """Fuse at most this often (the pitot samples faster; its noise is white)."""
     min_airspeed_mps: float = pydantic.Field(8.0, ge=0)

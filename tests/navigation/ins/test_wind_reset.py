@@ -44,7 +44,7 @@ def test_a_wind_beyond_its_sigma_is_refused_then_reacquired():
         return update(kind, t_s, y, H, R, gate)
 
     ekf.update = spy
-    info = ekf.reset_wind("drag:wind_reset", 0.4, y, H, R)
+    info = ekf.reset_wind("drag:reset", 0.4, y, H, R)
     assert info.accepted and info.nis > 100.0  # the NIS the gate saw
     # The wind's variance grew by the wind change that explains the disagreement (5 m/s north),
     # and its ties to the velocity are kept.
@@ -62,4 +62,4 @@ def test_reset_wind_needs_wind_states():
     ekf.initialize(0.0, 0.8, 0.2, 500.0, np.array([5.0, 0.0, 0.0]), np.array([1.0, 0.0, 0.0, 0.0]), np.eye(ekf.n) * 1e-4)
     y, H, R = meas.drag_specific_force(ekf, [0.0, 0.0], [5.0, 0.0], MU_PER_S, 0.05)
     with pytest.raises(ValueError, match="wind states"):
-        ekf.reset_wind("drag:wind_reset", 0.2, y, H, R)
+        ekf.reset_wind("drag:reset", 0.2, y, H, R)
