@@ -32,7 +32,7 @@ from testbench.navigation.ins.error_model import IA, IBA, IBB, IBG, IDS, IFX, IG
 from testbench.navigation.ins.gnss_guard import GnssSpoofGuard
 from testbench.navigation.ins.imu_noise import imu_noise_from_datasheet, preset_datasheet, preset_names, preset_scale_error
 from testbench.navigation.ins.magnetic import OnboardMagneticModel
-from testbench.navigation.ins.settings import InsEkfParams
+from testbench.navigation.ins.settings import AirspeedAiding, DragAiding, InsEkfParams
 
 log = logging.getLogger(__name__)
 
@@ -112,7 +112,7 @@ class InsEkfNavigator(Navigator):
         self._last_drag_ok_t_s: float | None = None  # last drag sample the gate took
         self._last_airspeed_ok_t_s: float | None = None  # last airspeed sample the gate took
         self.wind_resets = 0
-        """How many times the wind was re-acquired from refused drag samples (reset_wind)."""
+        """How many times the wind was re-acquired from refused drag or airspeed samples (reset_wind)."""
         # The last estimate() (None: the filter moved since). Aids, the controller and the
         # recorder all ask for it at a tick; in a ten-vehicle swarm building it each time was
         # a tenth of the run.
@@ -172,7 +172,7 @@ class InsEkfNavigator(Navigator):
             d[self.ekf.i_app] = self.params.fix_appearance_sigma_m
         return np.diag(d**2)
 
-    def _wind_settings(self):
+    def _wind_settings(self) -> AirspeedAiding | DragAiding | None:
         """The aiding whose wind_sigma_mps / wind_rw_mps_sqrt_s set the wind states (airspeed
         aiding, or drag aiding with wind_states), or None: no wind states."""
         p = self.params
