@@ -27,12 +27,13 @@ from testbench.core.units import DEG_TO_RAD, STANDARD_GRAVITY_MPS2
 from testbench.navigation.fix_quality import appearance_gain
 from testbench.navigation.ins import measurements as meas
 from testbench.navigation.ins.consistency import error_state
+from testbench.navigation.ins.air_aiding import AirRelativeAiding, wind_settings
 from testbench.navigation.ins.ekf import ErrorStateEKF
 from testbench.navigation.ins.error_model import IA, IBA, IBB, IBG, IDS, IFX, IGN, IP, IV, IW
 from testbench.navigation.ins.gnss_guard import GnssSpoofGuard
 from testbench.navigation.ins.imu_noise import imu_noise_from_datasheet, preset_datasheet, preset_names, preset_scale_error
 from testbench.navigation.ins.magnetic import OnboardMagneticModel
-from testbench.navigation.ins.settings import AirspeedAiding, DragAiding, InsEkfParams
+from testbench.navigation.ins.settings import InsEkfParams
 
 log = logging.getLogger(__name__)
 
@@ -90,13 +91,12 @@ class InsEkfNavigator(Navigator):
             scale_corr_angle_rad=math.radians(params.scale_error_angle_deg),
             drag_scale_sigma=self.drag_scale_sigma,
             drag_scale_tau_s=math.inf if params.drag_aiding is None else params.drag_aiding.scale_tau_s,
-            wind_states=self._wind_settings() is not None,
-            wind_rw_mps_sqrt_s=0.0 if self._wind_settings() is None else self._wind_settings().wind_rw_mps_sqrt_s,
+            wind_states=wind_settings(params) is not None,
+            wind_rw_mps_sqrt_s=0.0 if wind_settings(params) is None else wind_settings(params).wind_rw_mps_sqrt_s,
             appearance_sigma_m=params.fix_appearance_sigma_m,
         )
         self._mag_model: OnboardMagneticModel | None = None
         self._airspeed: float | None = None
-        self._last_airspeed_fused_t_s = -math.inf
         self._initialized = False
         self._last_gnss_t = -math.inf
         self._last_fix_ok_t_s: float | None = None  # last accepted position fix (None: none yet)
@@ -105,14 +105,8 @@ class InsEkfNavigator(Navigator):
         self._gnss_guard = None if params.gnss_monitor is None else GnssSpoofGuard(params.gnss_monitor)
         self.gnss_monitor = None if self._gnss_guard is None else self._gnss_guard.monitor
         self.estimates_wind = self.ekf.wind_states
-        d = params.drag_aiding
-        self._drag_mu_per_s = None if d is None else (d.coefficient_per_s or meas.momentum_drag_per_s(aircraft or {}))
-        self._drag_acc = [0.0, 0.0, 0.0, 0.0, 0]  # sums over the interval: f_bx, f_by, v_bx, v_by; count
-        self._drag_t0_s: float | None = None
-        self._last_drag_ok_t_s: float | None = None  # last drag sample the gate took
-        self._last_airspeed_ok_t_s: float | None = None  # last airspeed sample the gate took
-        self.wind_resets = 0
-        """How many times the wind was re-acquired from refused drag or airspeed samples (reset_wind)."""
+        self.air = AirRelativeAiding(params, aircraft, ctx.vehicle_id)
+        """Rotor-drag and airspeed aiding (air_aiding.py)."""
         # The last estimate() (None: the filter moved since). Aids, the controller and the
         # recorder all ask for it at a tick; in a ten-vehicle swarm building it each time was
         # a tenth of the run.
@@ -166,21 +160,11 @@ class InsEkfNavigator(Navigator):
         d[IGN] = self.params.gnss_error_sigma_m
         d[IFX] = self.fix_error_sigma_ned_m
         d[IDS] = self.drag_scale_sigma
-        if self._wind_settings() is not None:
-            d[IW] = self._wind_settings().wind_sigma_mps
+        if wind_settings(self.params) is not None:
+            d[IW] = wind_settings(self.params).wind_sigma_mps
         if self.ekf.i_app is not None:
             d[self.ekf.i_app] = self.params.fix_appearance_sigma_m
         return np.diag(d**2)
-
-    def _wind_settings(self) -> AirspeedAiding | DragAiding | None:
-        """The aiding whose wind_sigma_mps / wind_rw_mps_sqrt_s set the wind states (airspeed
-        aiding, or drag aiding with wind_states), or None: no wind states."""
-        p = self.params
-        if p.airspeed_aiding is not None:
-            return p.airspeed_aiding
-        if p.drag_aiding is not None and p.drag_aiding.wind_states:
-            return p.drag_aiding
-        return None
 
     def appearance_gain(self, quality: float) -> float:
         """g(q) (dimensionless) of a fix of quality q on the appearance states
@@ -197,38 +181,8 @@ class InsEkfNavigator(Navigator):
             self.ekf.propagate(float(imu.t_s), imu.omega_ib_b_rps, imu.f_ib_b_mps2)
         else:  # the spoofing monitor's bookkeeping around the same propagation
             self._gnss_guard.propagate(self, imu)
-        if self._drag_mu_per_s is not None:
-            self._accumulate_drag(float(imu.t_s), imu.f_ib_b_mps2)
-
-    def _accumulate_drag(self, t_s: float, f_ib_b_mps2) -> None:
-        """Sum the raw body x, y specific force and the nominal body x, y velocity (through
-        the air, with wind states); every drag_aiding.interval_s fuse their means
-        (measurements.drag_specific_force)."""
-        ins = self.ekf.ins
-        qw, qx, qy, qz = ins.q
-        vn, ve, vd = ins.vel
-        if self.ekf.wind_states:  # the velocity through the air
-            vn -= float(self.ekf.wind_ne_mps[0])
-            ve -= float(self.ekf.wind_ne_mps[1])
-        acc = self._drag_acc
-        acc[0] += float(f_ib_b_mps2[0])
-        acc[1] += float(f_ib_b_mps2[1])
-        # v_b = C_nb^T v: dot products with C_nb's first two columns (body x and y in NED).
-        acc[2] += (1 - 2 * (qy * qy + qz * qz)) * vn + 2 * (qx * qy + qw * qz) * ve + 2 * (qx * qz - qw * qy) * vd
-        acc[3] += 2 * (qx * qy - qw * qz) * vn + (1 - 2 * (qx * qx + qz * qz)) * ve + 2 * (qy * qz + qw * qx) * vd
-        acc[4] += 1
-        if self._drag_t0_s is None:
-            self._drag_t0_s = t_s
-        if t_s - self._drag_t0_s < self.params.drag_aiding.interval_s - 1e-9:
-            return
-        n = acc[4]
-        d = self.params.drag_aiding
-        y, H, R = meas.drag_specific_force(self.ekf, (acc[0] / n, acc[1] / n), (acc[2] / n, acc[3] / n),
-                                           self._drag_mu_per_s, d.sigma_mps2)
-        reset_after_s = d.wind_reset_after_s if self.ekf.wind_states and d.wind_reset_after_s else 0.0
-        self._last_drag_ok_t_s = self._fuse_air_relative("drag", t_s, y, H, R, self._last_drag_ok_t_s, reset_after_s)[1]
-        self._drag_acc = [0.0, 0.0, 0.0, 0.0, 0]
-        self._drag_t0_s = None
+        if self.air.drag_mu_per_s is not None:
+            self.air.accumulate_drag(self.ekf, float(imu.t_s), imu.f_ib_b_mps2)
 
     def correct(self, measurement) -> CorrectionInfo | None:
         self._require_init()
@@ -277,7 +231,7 @@ class InsEkfNavigator(Navigator):
             # Kept for the estimate (controllers fly airspeed); fused only with airspeed aiding
             # (its wind states make it a constraint on the velocity over the ground).
             self._airspeed = float(measurement.airspeed_mps)
-            return self._correct_airspeed(self._airspeed, t) if p.airspeed_aiding is not None else None
+            return self.air.correct_airspeed(self.ekf, self._airspeed, t) if p.airspeed_aiding is not None else None
         return None
 
     def estimate(self) -> NavEstimate:
@@ -375,39 +329,8 @@ class InsEkfNavigator(Navigator):
 
     # The navigator's state a rewind of the spoofing monitor restores (gnss_guard.py): the
     # filter and the bookkeeping of its aids.
-    ROLLBACK_ATTRS = ("ekf", "_airspeed", "_last_airspeed_fused_t_s", "_last_gnss_t", "_last_fix_ok_t_s",
-                      "_last_gnss_ok_t_s", "_last_baro_ok_t_s", "_drag_acc", "_drag_t0_s", "_last_drag_ok_t_s",
-                      "_last_airspeed_ok_t_s", "wind_resets")
-
-    def _correct_airspeed(self, airspeed_mps: float, t: float) -> CorrectionInfo | None:
-        """Fuse the true airspeed and, unless sideslip_sigma_deg is None, zero sideslip as one
-        measurement ("airspeed", 1 or 2 dof), at most every airspeed_aiding.interval_s and only
-        above min_airspeed_mps (measured and estimated)."""
-        a = self.params.airspeed_aiding
-        if t - self._last_airspeed_fused_t_s < a.interval_s - 1e-9:
-            return None
-        if airspeed_mps < a.min_airspeed_mps or np.linalg.norm(meas.air_velocity_ned(self.ekf)) < a.min_airspeed_mps:
-            return None
-        self._last_airspeed_fused_t_s = t
-        y, H, R = meas.true_airspeed(self.ekf, airspeed_mps, a.sigma_mps)
-        if a.sideslip_sigma_deg is not None:
-            yb, Hb, Rb = meas.zero_sideslip(self.ekf, a.sideslip_sigma_deg * DEG_TO_RAD)
-            y, H, R = np.concatenate([y, yb]), np.vstack([H, Hb]), np.diag([R[0, 0], Rb[0, 0]])
-        info, self._last_airspeed_ok_t_s = self._fuse_air_relative(
-            "airspeed", t, y, H, R, self._last_airspeed_ok_t_s, a.wind_reset_after_s or 0.0)
-        return info
-
-    def _fuse_air_relative(self, kind: str, t: float, y, H, R, last_ok_t_s: float | None,
-                           reset_after_s: float) -> tuple[CorrectionInfo, float | None]:
-        """Fuse a measurement of the velocity through the air (rotor drag, airspeed) through
-        the gate; after reset_after_s (> 0; 0: never) of refusals, re-acquire the wind from it
-        (ErrorStateEKF.reset_wind). Returns (info, the new last-accepted time)."""
-        info, ok_t_s = self._update_or_reset(kind, t, y, H, R, last_ok_t_s, None, reset_after_s, self.ekf.reset_wind)
-        if info.kind.endswith(":reset"):
-            self.wind_resets += 1
-            log.info("%s: t=%.1f s: wind re-acquired from the %s after %.1f s of refused samples (NIS %.1f)",
-                     self.ctx.vehicle_id, t, kind, t - last_ok_t_s, info.nis)
-        return info, ok_t_s
+    ROLLBACK_ATTRS = ("ekf", "air", "_airspeed", "_last_gnss_t", "_last_fix_ok_t_s", "_last_gnss_ok_t_s",
+                      "_last_baro_ok_t_s")
 
     def _correct_baro(self, baro: BaroSample, t: float) -> CorrectionInfo:
         """Fuse a barometric altitude through the gate; after baro_reset_after_s of rejections
