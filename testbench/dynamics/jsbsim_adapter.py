@@ -36,6 +36,7 @@ from testbench.core.errors import InputError, SimulationAborted
 from testbench.core.geodesy import LocalTangentFrame, ned_to_geodetic
 from testbench.core.interfaces import Dynamics, GeodeticOrigin
 from testbench.core.messages import RotorCommand, SurfaceCommand, TruthState
+from testbench.core.rotations import dcm_to_euler
 from testbench.core.units import (
     FT_TO_M,
     KT_TO_MPS,
@@ -195,10 +196,14 @@ class JSBSimDynamics(Dynamics):
         fdm["ic/long-gc-rad"] = float(lon)
         fdm["ic/h-sl-ft"] = float(alt) * M_TO_FT
         fdm["ic/psi-true-rad"] = float(initial.heading_rad)
+        hover_cmd = float(self.aircraft_meta.get("hover_throttle_norm", 0.5)) if self.kind == "multirotor" else 0.0
         if self._air is None:
             fdm["ic/vt-kts"] = float(initial.airspeed_mps) * MPS_TO_KT
         else:
-            self._set_initial_velocity_in_wind(initial)
+            v_ground_ned = self._set_initial_velocity_in_wind(initial)
+            if self.kind == "multirotor":
+                hover_cmd = self._trim_multirotor_in_wind(v_ground_ned - np.asarray(self._air.wind_ned_mps, float),
+                                                          float(initial.heading_rad))
         fdm["ic/gamma-deg"] = 0.0
         if not fdm.run_ic():
             raise InputError(f"aircraft {self.aircraft!r}: JSBSim rejected the initial condition")
@@ -206,8 +211,7 @@ class JSBSimDynamics(Dynamics):
             self._set_turbulence()
         fdm["propulsion/set-running"] = -1
         if self.kind == "multirotor":
-            hover = float(self.aircraft_meta.get("hover_throttle_norm", 0.5))
-            self._apply(RotorCommand(motors=(hover,) * self._n_motors))
+            self._apply(RotorCommand(motors=(hover_cmd,) * self._n_motors))
         elif initial.trim and initial.airspeed_mps > 0.0:
             try:
                 fdm["simulation/do_simple_trim"] = 1  # full longitudinal trim in level flight
@@ -257,12 +261,13 @@ class JSBSimDynamics(Dynamics):
 
     # -- internals ----------------------------------------------------------------------
 
-    def _set_initial_velocity_in_wind(self, initial: InitialCondition) -> None:
+    def _set_initial_velocity_in_wind(self, initial: InitialCondition) -> np.ndarray:
         """The wind through JSBSim's initial condition (run_ic hands it to FGWinds), then the
         ground velocity: a fixed wing's airspeed is through the air along its heading (no
         sideslip, the wind added over the ground), a multirotor's over the ground. Setting
         ic/vt-kts after the wind would scale the initial relative wind instead (JSBSim keeps
-        the ground velocity when the wind changes), giving a sideslipping start."""
+        the ground velocity when the wind changes), giving a sideslipping start. Returns the
+        ground velocity set (3,), NED m/s."""
         fdm = self.fdm
         w_n, w_e, w_d = (float(x) for x in self._air.wind_ned_mps)
         w_h = math.hypot(w_n, w_e)
@@ -278,6 +283,38 @@ class JSBSimDynamics(Dynamics):
         fdm["ic/vn-fps"] = v_n * M_TO_FT
         fdm["ic/ve-fps"] = v_e * M_TO_FT
         fdm["ic/vd-fps"] = v_d * M_TO_FT
+        return np.array([v_n, v_e, v_d])
+
+    def _trim_multirotor_in_wind(self, v_air_ned_mps: np.ndarray, heading_rad: float) -> float:
+        """Tilt a multirotor into the relative wind so that it starts in equilibrium, as JSBSim's
+        trim starts a fixed wing: the thrust balances weight and the rotors' drag,
+        -c omega_i v_perp per rotor (the sidecar's rotor_drag_coefficient; v_perp the air
+        velocity in the rotor plane), with T = k_T omega^2 per rotor. A few fixed-point steps
+        (the drag depends on the rotor speed and on the tilt, and both on the drag). Sets the
+        initial roll and pitch (heading kept); returns the motors' normalised command (thrust /
+        max thrust, the same for all: the drag acts at the centre of gravity)."""
+        meta = self.aircraft_meta
+        m, c, k_t = float(meta["mass_kg"]), float(meta["rotor_drag_coefficient"]), float(meta["motor_thrust_constant"])
+        n, t_max = self._n_motors, float(meta["max_thrust_per_motor_n"])
+        g0 = STANDARD_GRAVITY_MPS2
+        v_air = np.asarray(v_air_ned_mps, float)
+        z_b = np.array([0.0, 0.0, 1.0])  # body down axis in NED
+        thrust_n = m * g0
+        for _ in range(8):
+            omega_sum = n * math.sqrt(thrust_n / n / k_t)
+            v_perp = v_air - (v_air @ z_b) * z_b
+            drag_n = -c * omega_sum * v_perp
+            f_thrust = -(m * np.array([0.0, 0.0, g0]) + drag_n)  # thrust balances weight and drag
+            thrust_n = float(np.linalg.norm(f_thrust))
+            z_b = -f_thrust / thrust_n
+        x_c = np.array([math.cos(heading_rad), math.sin(heading_rad), 0.0])
+        y_b = np.cross(z_b, x_c)
+        y_b /= np.linalg.norm(y_b)
+        x_b = np.cross(y_b, z_b)
+        roll, pitch, _ = dcm_to_euler(np.column_stack([x_b, y_b, z_b]))
+        self.fdm["ic/phi-rad"] = float(roll)
+        self.fdm["ic/theta-rad"] = float(pitch)
+        return _clip(thrust_n / n / t_max, 0.0, 1.0)
 
     def _set_turbulence(self) -> None:
         """Turbulence model, intensity and its own seeded generator (after run_ic, which

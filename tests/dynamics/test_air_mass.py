@@ -44,16 +44,21 @@ def test_fixed_wing_starts_through_the_air_along_its_heading():
     assert truth.vel_ned_mps[1] == pytest.approx(6.0, abs=0.3)
 
 
-def test_multirotor_hovers_over_its_start_point_in_wind():
-    """A multirotor's initial velocity is over the ground: at 0 it hovers with the wind for airspeed."""
+def test_multirotor_starts_trimmed_into_the_wind():
+    """A multirotor's initial velocity is over the ground: at 0 it hovers with the wind for
+    airspeed, tilted against the rotors' drag (c sum(omega) v_air, ~0.36 m/s^2 per m/s) so
+    that it stays put with its start command."""
     dyn = JSBSimDynamics("tb_quad", ORIGIN, 200.0, air=AirMass(wind_ned_mps=WESTERLY_6))
     truth = dyn.reset(InitialCondition(pos_ned_m=(0.0, 0.0, -100.0), heading_rad=0.0, airspeed_mps=0.0))
     np.testing.assert_allclose(truth.vel_ned_mps, 0.0, atol=1e-9)
     assert truth.airspeed_mps == pytest.approx(6.0, abs=1e-6)
-    # Held at the hover command, the rotors' drag (-c omega v_air) now pushes it downwind.
-    hover = aircraft_meta("tb_quad")["hover_throttle_norm"]
-    dyn.advance(RotorCommand(motors=(hover,) * 4), 400)
-    assert dyn.truth().vel_ned_mps[1] > 0.5
+    # Heading north, the air moving east: the thrust leans west, a roll to the left of
+    # atan(2.2 / 9.8) ~ 12 deg.
+    assert math.degrees(truth.rpy_rad[0]) == pytest.approx(-12.4, abs=0.5)
+    assert abs(truth.rpy_rad[1]) < 1e-3
+    dyn.advance(None, 400)  # 2 s on the start command
+    v = dyn.truth().vel_ned_mps
+    assert np.hypot(v[0], v[1]) < 0.1  # untrimmed (level, hover command): 1.8 m/s^2 downwind
 
 
 def test_calm_air_reports_no_wind():
