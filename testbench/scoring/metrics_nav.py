@@ -150,9 +150,9 @@ def wind_errors_ne_mps(tel: pd.DataFrame) -> np.ndarray | None:
     return err if np.isfinite(err).all(axis=1).any() else None
 
 
-def wind_nees(tel: pd.DataFrame) -> np.ndarray:
-    """Horizontal wind NEES per row (2 dof, diagonal sigmas), shape (n,)."""
-    err = wind_errors_ne_mps(tel)
+def wind_nees(tel: pd.DataFrame, err: np.ndarray) -> np.ndarray:
+    """Horizontal wind NEES per row (2 dof, diagonal sigmas), shape (n,), of the wind errors
+    err (n, 2) (wind_errors_ne_mps)."""
     sig = np.stack([column(tel, f"nav_sigma_wind_{a}_mps") for a in ("n", "e")], axis=1)
     return _diag_nees(err, sig)
 
@@ -267,7 +267,7 @@ def compute_nav(record: RunRecord) -> NavMetrics | None:
             nees[name] = s
     wind_err = wind_errors_ne_mps(tel)
     if wind_err is not None:
-        s = chi_square_stats(wind_nees(tel), 2)
+        s = chi_square_stats(wind_nees(tel, wind_err), 2)
         if s is not None:
             nees["wind"] = s
 

@@ -19,6 +19,7 @@ import numpy as np
 from testbench.core.messages import CorrectionInfo
 from testbench.core.units import DEG_TO_RAD
 from testbench.navigation.ins import measurements as meas
+from testbench.navigation.ins.reacquire import update_or_reset
 from testbench.navigation.ins.settings import AirspeedAiding, DragAiding, InsEkfParams
 
 log = logging.getLogger(__name__)
@@ -105,16 +106,11 @@ class AirRelativeAiding:
     def _fuse(self, ekf, kind: str, t: float, y, H, R, last_ok_t_s: float | None,
               reset_after_s: float) -> tuple[CorrectionInfo, float | None]:
         """Fuse through the gate; after reset_after_s (> 0; 0: never) of refusals re-acquire the
-        wind from the sample (ErrorStateEKF.reset_wind, kind "<kind>:reset"). Returns (info,
-        the new last-accepted time)."""
-        info = ekf.update(kind, t, y, H, R)
-        if last_ok_t_s is None or info.accepted:
-            return info, t
-        refused_s = t - last_ok_t_s
-        if reset_after_s <= 0.0 or refused_s < reset_after_s:
-            return info, last_ok_t_s
-        info = ekf.reset_wind(f"{kind}:reset", t, y, H, R, refused_s)
-        self.wind_resets += 1
-        log.info("%s: t=%.1f s: wind re-acquired from the %s after %.1f s of refused samples (NIS %.1f)",
-                 self.vehicle_id, t, kind, refused_s, info.nis)
-        return info, t
+        wind from the sample (reacquire.update_or_reset with ErrorStateEKF.reset_wind, kind
+        "<kind>:reset"). Returns (info, the new last-accepted time)."""
+        info, ok_t_s = update_or_reset(ekf, kind, t, y, H, R, last_ok_t_s, reset_after_s, ekf.reset_wind)
+        if info.kind.endswith(":reset"):
+            self.wind_resets += 1
+            log.info("%s: t=%.1f s: wind re-acquired from the %s after %.1f s of refused samples (NIS %.1f)",
+                     self.vehicle_id, t, kind, t - last_ok_t_s, info.nis)
+        return info, ok_t_s

@@ -26,13 +26,14 @@ from testbench.core.rotations import quat_to_dcm, quat_to_euler
 from testbench.core.units import DEG_TO_RAD, STANDARD_GRAVITY_MPS2
 from testbench.navigation.fix_quality import appearance_gain
 from testbench.navigation.ins import measurements as meas
-from testbench.navigation.ins.consistency import error_state
 from testbench.navigation.ins.air_aiding import AirRelativeAiding, wind_settings
+from testbench.navigation.ins.consistency import error_state
 from testbench.navigation.ins.ekf import ErrorStateEKF
 from testbench.navigation.ins.error_model import IA, IBA, IBB, IBG, IDS, IFX, IGN, IP, IV, IW
 from testbench.navigation.ins.gnss_guard import GnssSpoofGuard
 from testbench.navigation.ins.imu_noise import imu_noise_from_datasheet, preset_datasheet, preset_names, preset_scale_error
 from testbench.navigation.ins.magnetic import OnboardMagneticModel
+from testbench.navigation.ins.reacquire import update_or_reset
 from testbench.navigation.ins.settings import InsEkfParams
 
 log = logging.getLogger(__name__)
@@ -343,21 +344,12 @@ class InsEkfNavigator(Navigator):
     def _update_or_reset(self, kind: str, t: float, y, H, R, last_ok_t_s: float | None,
                          other_ok_t_s: float | None, reset_after_s: float,
                          reset=None) -> tuple[CorrectionInfo, float | None]:
-        """Fuse an absolute fix (GNSS, position fix, barometric height) through the gate; when
-        this source has been rejected for reset_after_s (> 0), reset the filter to it (`reset`:
-        ErrorStateEKF.reset_position by default, reset_height for the barometer), unless the
-        OTHER absolute aid (None: there is none) had a fix accepted in that time: then
-        the filter agrees with one source and the one it keeps rejecting is the faulty one (a
-        spoofer, a matcher locked on the wrong place). Returns (info, this source's new
-        last-accepted time)."""
-        info = self.ekf.update(kind, t, y, H, R)
-        if last_ok_t_s is None or info.accepted:
-            return info, t
-        lost_s = t - last_ok_t_s
-        other_agrees = other_ok_t_s is not None and t - other_ok_t_s < reset_after_s
-        if reset_after_s > 0.0 and lost_s >= reset_after_s and not other_agrees:
-            return (reset or self.ekf.reset_position)(f"{kind}:reset", t, y, H, R, lost_s), t
-        return info, last_ok_t_s
+        """An absolute fix (GNSS, position fix, barometric height) through the gate, or the
+        filter reset to it (`reset`: ErrorStateEKF.reset_position by default, reset_height for
+        the barometer) after reset_after_s of refusals unless the OTHER absolute aid agrees
+        (reacquire.update_or_reset). Returns (info, this source's new last-accepted time)."""
+        return update_or_reset(self.ekf, kind, t, y, H, R, last_ok_t_s, reset_after_s,
+                               reset or self.ekf.reset_position, other_ok_t_s)
 
     def _require_init(self) -> None:
         if not self._initialized:
