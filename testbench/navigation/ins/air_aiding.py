@@ -18,6 +18,7 @@ import numpy as np
 
 from testbench.core.messages import CorrectionInfo
 from testbench.core.units import DEG_TO_RAD
+from testbench.dynamics.rotor_drag import momentum_drag_per_s
 from testbench.navigation.ins import measurements as meas
 from testbench.navigation.ins.reacquire import update_or_reset
 from testbench.navigation.ins.settings import AirspeedAiding, DragAiding, InsEkfParams
@@ -45,7 +46,8 @@ class AirRelativeAiding:
         self.airspeed = params.airspeed_aiding
         self.vehicle_id = vehicle_id
         d = self.drag
-        self.drag_mu_per_s = None if d is None else (d.coefficient_per_s or meas.momentum_drag_per_s(aircraft or {}))
+        self.drag_mu_per_s = None if d is None else (d.coefficient_per_s or momentum_drag_per_s(
+            aircraft or {}, "navigation.params.drag_aiding", "give drag_aiding.coefficient_per_s instead"))
         """mu (1/s) of the rotor-drag model; None: no drag aiding."""
         self._drag_acc = [0.0, 0.0, 0.0, 0.0, 0]  # sums over the interval: f_bx, f_by, v_bx, v_by; count
         self._drag_t0_s: float | None = None

@@ -12,8 +12,6 @@ from functools import lru_cache
 import numpy as np
 
 from testbench.core import geodesy
-from testbench.core.errors import InputError
-from testbench.core.units import STANDARD_GRAVITY_MPS2
 from testbench.core.interfaces import GeodeticOrigin
 from testbench.core.rotations import dcm_to_euler, heading_sensitivity, skew, wrap_pi
 from testbench.navigation.ins.error_model import IA, IBA, IBB, IDS, IFX, IGN, IP, IV, IW
@@ -154,25 +152,6 @@ def mag_heading(ekf, field_b_T, field_ned_T, sigma_rad: float):
     H = np.zeros((1, ekf.n))
     H[0, IA] = -(h0[0] * dh[1] - h0[1] * dh[0]) / (h0[0] ** 2 + h0[1] ** 2)
     return y, H, np.array([[sigma_rad**2]])
-
-
-def momentum_drag_per_s(aircraft: dict) -> float:
-    """mu (1/s) of a multirotor's rotor (momentum) drag at hover from its sidecar: each rotor
-    adds -c omega_i v_perp (body x, y; c = rotor_drag_coefficient, N s/(m rad)), and at hover
-    omega = sqrt(m g / (n k_T)), so the body x, y specific force is -mu v_b with
-    mu = n c omega / m (tb_quad: 0.365 1/s, i.e. 1.46 m/s^2 at 4 m/s)."""
-    try:
-        m = float(aircraft["mass_kg"])
-        c = float(aircraft["rotor_drag_coefficient"])
-        k_t = float(aircraft["motor_thrust_constant"])
-        n = len(aircraft["motors"])
-    except (KeyError, TypeError):
-        raise InputError(
-            "navigation.params.drag_aiding: the aircraft's sidecar has no rotor drag model "
-            "(mass_kg, rotor_drag_coefficient, motor_thrust_constant, motors: a multirotor); "
-            "give drag_aiding.coefficient_per_s instead") from None
-    omega_hover = math.sqrt(m * STANDARD_GRAVITY_MPS2 / (n * k_t))
-    return n * c * omega_hover / m
 
 
 def drag_specific_force(ekf, f_b_xy_mps2, v_b_xy_mps, mu_per_s: float, sigma_mps2: float):

@@ -14,7 +14,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from testbench.cli import main
-from testbench.navigation.ins.measurements import momentum_drag_per_s
+from testbench.dynamics.rotor_drag import momentum_drag_per_s
 
 pytest.importorskip("jsbsim")
 
@@ -70,7 +70,7 @@ def test_drag_aiding_holds_the_velocity_without_gnss(tmp_path):
 def test_momentum_drag_coefficient_from_the_sidecar():
     from testbench.dynamics.catalog import aircraft_meta
 
-    assert momentum_drag_per_s(aircraft_meta("tb_quad")) == pytest.approx(0.365, abs=0.001)
+    assert momentum_drag_per_s(aircraft_meta("tb_quad"), "test") == pytest.approx(0.365, abs=0.001)
 
 
 def test_drag_aiding_on_an_aircraft_without_rotor_drag_is_bad_input(tmp_path, capsys):
