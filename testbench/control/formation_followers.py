@@ -39,7 +39,8 @@ class FormationFollower(MultirotorController):
     """Multirotor follower: FormationLaw velocity command through the multirotor cascade
     (its velocity, attitude and rate loops and mixer), nose on the formation course.
 
-    Params: FormationParams, plus max_tilt_deg (default: the sidecar's). A subclass flies
+    Params: FormationParams, plus max_tilt_deg (default: the sidecar's), max_yaw_rate_deg_s and
+    drag_compensation (the cascade's, MultirotorController). A subclass flies
     another law with the same interface by setting law_class (trail.ColumnFollower)."""
 
     law_class = FormationLaw
@@ -47,10 +48,11 @@ class FormationFollower(MultirotorController):
     class Params(FormationParams):
         max_tilt_deg: float | None = pydantic.Field(default=None, gt=0.0, lt=60.0)
         max_yaw_rate_deg_s: float = pydantic.Field(15.0, gt=0)
+        drag_compensation: bool = False
 
     def __init__(self, params: "FormationFollower.Params", *, ctx: BuildContext, aircraft: dict, mission=None, **_: object):
         base = MultirotorController.Params(max_speed_mps=params.max_speed_mps, max_climb_rate_mps=params.max_climb_rate_mps,
-                                           max_tilt_deg=params.max_tilt_deg)
+                                           max_tilt_deg=params.max_tilt_deg, drag_compensation=params.drag_compensation)
         super().__init__(base, ctx=ctx, mission=_HoldMission(), aircraft=aircraft)
         self.law = self.law_class(params, ctx.vehicle_id)
         self._v_cmd = np.zeros(3)

@@ -281,10 +281,12 @@ class TrailLaw(FollowerLaw):
 @register("controller", "column_follower")
 class ColumnFollower(FormationFollower):
     """Multirotor column follower: TrailLaw (module docstring) through the multirotor cascade,
-    nose along the trail. Params: ColumnParams, plus max_tilt_deg and max_yaw_rate_deg_s."""
+    nose along the trail. Params: ColumnParams, plus max_tilt_deg, max_yaw_rate_deg_s and
+    drag_compensation (FormationFollower's)."""
 
     law_class = TrailLaw
 
     class Params(ColumnParams):
         max_tilt_deg: float | None = pydantic.Field(default=None, gt=0.0, lt=60.0)
         max_yaw_rate_deg_s: float = pydantic.Field(15.0, gt=0)
+        drag_compensation: bool = False
