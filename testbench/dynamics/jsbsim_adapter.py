@@ -205,6 +205,13 @@ class JSBSimDynamics(Dynamics):
                 hover_cmd = self._trim_multirotor_in_wind(v_ground_ned - np.asarray(self._air.wind_ned_mps, float),
                                                           float(initial.heading_rad))
         fdm["ic/gamma-deg"] = 0.0
+        if self.kind == "multirotor":
+            # Before run_ic: its pass at t = 0 is where the model's motor lag starts at the
+            # command (tb_quad.xml). Written after it, the motors started from zero thrust and
+            # the quad fell freely for its first 50 ms (0.25 m/s down; in wind its rotor drag
+            # was 43-93 % of the trimmed drag over those steps, which misled the drag aiding's
+            # first wind estimate by 12 %).
+            self._apply(RotorCommand(motors=(hover_cmd,) * self._n_motors))
         if not fdm.run_ic():
             raise InputError(f"aircraft {self.aircraft!r}: JSBSim rejected the initial condition")
         if self._air is not None:

@@ -61,6 +61,24 @@ def test_multirotor_starts_trimmed_into_the_wind():
     assert np.hypot(v[0], v[1]) < 0.1  # untrimmed (level, hover command): 1.8 m/s^2 downwind
 
 
+@pytest.mark.parametrize("air", [None, AirMass(wind_ned_mps=WESTERLY_6)], ids=["calm", "wind"])
+def test_multirotor_motors_start_at_the_start_command(air):
+    """The motors' lag starts at the start command, so the rotors hold the quad from the very
+    first physics step: thrust against weight (specific force ~ -g along body z) and, in wind,
+    the full trimmed rotor drag. Before, the command was written after run_ic, the lag started
+    at zero thrust, and the quad fell freely for its first 50 ms."""
+    dyn = JSBSimDynamics("tb_quad", ORIGIN, 200.0, air=air)
+    dyn.reset(InitialCondition(pos_ned_m=(0.0, 0.0, -100.0), heading_rad=0.0, airspeed_mps=0.0))
+    f_first = []
+    for _ in range(4):  # the first 20 ms
+        dyn.advance(None, 1)
+        f_first.append(dyn.truth().f_b_mps2)
+    f_first = np.array(f_first)
+    assert f_first[:, 2].max() < -9.0  # measured -9.6 to -9.8 (before: 0 at 5 ms, -4.5 at 20 ms)
+    if air is not None:  # 2.2 m/s^2 of drag to the east in 6 m/s, in the rolled body's y
+        assert np.hypot(f_first[:, 0], f_first[:, 1]).min() > 2.0
+
+
 def test_calm_air_reports_no_wind():
     dyn = JSBSimDynamics("tb_quad", ORIGIN, 200.0)
     truth = dyn.reset(InitialCondition(pos_ned_m=(0.0, 0.0, -100.0)))
