@@ -301,10 +301,10 @@ class MultirotorController(DeferredStatus, Controller):
     def _drag_compensation(self, estimate: NavEstimate) -> tuple[float, float]:
         """(north, east) m/s^2 that cancel the rotors' drag at the estimated velocity through
         the estimated air, mu (v_hat - w_hat); zeros without drag_compensation. It leaves the
-        velocity loop the plant its gains were placed for, v' = a (multirotor_gains); fed the
-        command instead (mu (v_cmd - w_hat)), it raised the loop's gain to a step of the
-        command by mu, and a quad flying multirotor_wind_drag's square with GNSS overshot its
-        corners by 4.2 instead of 3.5 m (cross-track RMS 2.4 instead of 1.4 m, steady 6 m/s wind).
+        velocity loop the plant its gains were placed for, v' = a (multirotor_gains). (The
+        command's drag, mu (v_cmd - w_hat), was tried first: it adds mu to the loop's gain to a
+        step of the command and flew no better; docs/measurements.md, "The rotor-drag
+        compensation".)
 
         A change of the wind estimate is handed over to the integrator, whose term moves by as
         much the other way, so the acceleration command stays continuous and the wind part
@@ -328,10 +328,10 @@ class MultirotorController(DeferredStatus, Controller):
         return mu * float(v[0]) + a_wn, mu * float(v[1]) + a_we
 
     def _start_from_present_tilt(self, roll: float, pitch: float, yaw: float,
-                                 accel_ff_ne: tuple[float, float] = (0.0, 0.0)) -> None:
+                                 accel_drag_ne: tuple[float, float] = (0.0, 0.0)) -> None:
         """Bumpless start: the velocity loop's horizontal integrator takes the acceleration the
         present tilt gives at constant height, -g z_h / z_d (z the body down axis in NED), less
-        the drag compensation's accel_ff_ne (m/s^2) at the start, so
+        the drag compensation's accel_drag_ne (m/s^2) at the start, so
         that a vehicle that starts tilted against a wind (the adapter trims it so) keeps that
         tilt instead of levelling and drifting off until the integrator has wound up again. A
         start within START_TILT_LEVEL_RAD of level leaves it at zero, as before (an estimate's
@@ -342,21 +342,21 @@ class MultirotorController(DeferredStatus, Controller):
         if z_d <= 0.5 or math.hypot(z_n, z_e) < math.sin(START_TILT_LEVEL_RAD):
             return  # beyond 60 deg: not a hover to carry on from; below the threshold: level
         k_i = self.gains.k_vel_i
-        i_n = _clip((-G * z_n / z_d - accel_ff_ne[0]) / k_i, -3.0, 3.0)
-        i_e = _clip((-G * z_e / z_d - accel_ff_ne[1]) / k_i, -3.0, 3.0)
+        i_n = _clip((-G * z_n / z_d - accel_drag_ne[0]) / k_i, -3.0, 3.0)
+        i_e = _clip((-G * z_e / z_d - accel_drag_ne[1]) / k_i, -3.0, 3.0)
         self._int_v = (i_n, i_e, self._int_v[2])
 
     def _velocity_loop(self, v_cmd, vel_ned_mps: list[float], dt: float,
-                       accel_ff_ne: tuple[float, float] = (0.0, 0.0)) -> tuple[float, float, float]:
+                       accel_drag_ne: tuple[float, float] = (0.0, 0.0)) -> tuple[float, float, float]:
         """PI velocity loop: acceleration command (NED, m/s^2) for v_cmd (3,) NED m/s, plus the
-        horizontal term accel_ff_ne (m/s^2; the drag compensation), with the tilt limit on its horizontal part
-        (vertical has priority) and conditional integration."""
+        drag compensation's horizontal accel_drag_ne (m/s^2), with the tilt limit on its
+        horizontal part (vertical has priority) and conditional integration."""
         g = self.gains
         i_n, i_e, i_d = self._int_v
         e_n, e_e, e_d = (float(v_cmd[0]) - vel_ned_mps[0], float(v_cmd[1]) - vel_ned_mps[1],
                          float(v_cmd[2]) - vel_ned_mps[2])
-        a_n = g.k_vel * e_n + g.k_vel_i * i_n + accel_ff_ne[0]
-        a_e = g.k_vel * e_e + g.k_vel_i * i_e + accel_ff_ne[1]
+        a_n = g.k_vel * e_n + g.k_vel_i * i_n + accel_drag_ne[0]
+        a_e = g.k_vel * e_e + g.k_vel_i * i_e + accel_drag_ne[1]
         a_d = g.k_vel * e_d + g.k_vel_i * i_d
         a_h = math.hypot(a_n, a_e)
         if a_h > self._accel_h_max_mps2:  # at most g tan(max_tilt) horizontally
