@@ -32,7 +32,7 @@ from testbench.core.interfaces import BuildContext, Controller
 from testbench.core.messages import GuidanceStatus, NavEstimate, RotorCommand
 from testbench.core.registry import ParamsModel, register
 from testbench.core.units import DEG_TO_RAD, STANDARD_GRAVITY_MPS2
-from testbench.dynamics.rotor_drag import momentum_drag_per_s
+from testbench.core.rotor_drag import momentum_drag_per_s
 
 G = STANDARD_GRAVITY_MPS2
 # A start tilted less than this is level for the velocity loop's bumpless start
@@ -126,7 +126,7 @@ class MultirotorController(DeferredStatus, Controller):
     r metres away must fly r times the turn rate faster than the leader to keep its slot.
     drag_compensation: the velocity loop adds the horizontal acceleration that cancels the
     rotors' drag at the estimated velocity through the air, mu (v_hat - w_hat) (mu from the
-    sidecar, dynamics.rotor_drag; w_hat the navigator's wind estimate, NavEstimate.wind_ne_mps,
+    sidecar, core.rotor_drag; w_hat the navigator's wind estimate, NavEstimate.wind_ne_mps,
     zero where it estimates none). Without it the integrator carries the drag: 1.46 m/s^2 at
     4 m/s for tb_quad, 86 % of its range, wound up anew behind every change of speed or
     course; flying at 4 m/s into a 5 m/s wind it saturates, and the proportional term leaves the

@@ -65,7 +65,7 @@ class DragAiding(ParamsModel):
     (turbulence, a change of wind) is beyond any drag model's reach."""
 
     coefficient_per_s: float | None = pydantic.Field(None, gt=0)
-    """mu (1/s); None: from the aircraft's sidecar at hover (dynamics.rotor_drag.momentum_drag_per_s)."""
+    """mu (1/s); None: from the aircraft's sidecar at hover (core.rotor_drag.momentum_drag_per_s)."""
     interval_s: float = pydantic.Field(0.2, gt=0, le=1.0)
     sigma_mps2: float = pydantic.Field(0.05, gt=0)
     """Error of the averaged specific force against the model, per axis: mu changes with the

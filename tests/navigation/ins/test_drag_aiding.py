@@ -14,7 +14,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from testbench.cli import main
-from testbench.dynamics.rotor_drag import momentum_drag_per_s
+from testbench.core.rotor_drag import momentum_drag_per_s
 
 pytest.importorskip("jsbsim")
 

@@ -1,7 +1,9 @@
-"""A multirotor's rotor (momentum) drag, from its aircraft sidecar: the one model that the
-JSBSim airframe flies (aircraft/tb_quad: each rotor drags -c omega_i v_perp), the drag aiding
-of the INS measures with (navigation/ins/air_aiding.py) and the velocity loop cancels
-(control/multirotor.py, drag_feedforward)."""
+"""A multirotor's rotor (momentum) drag, from its aircraft sidecar: the model that the JSBSim
+airframe flies (aircraft/tb_quad: each rotor drags -c omega_i v_perp), reduced to the one
+coefficient that the drag aiding of the INS measures with (navigation/ins/air_aiding.py) and
+the velocity loop cancels (control/multirotor.py, drag_compensation). In core, not dynamics:
+flight code (control) must not import the truth side (tests/navigation/relative/
+test_no_truth_access.py), and this is the vehicle's published data, not its state."""
 
 from __future__ import annotations
 
