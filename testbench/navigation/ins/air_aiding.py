@@ -17,8 +17,8 @@ import logging
 import numpy as np
 
 from testbench.core.messages import CorrectionInfo
-from testbench.core.units import DEG_TO_RAD
 from testbench.core.rotor_drag import momentum_drag_per_s
+from testbench.core.units import DEG_TO_RAD
 from testbench.navigation.ins import measurements as meas
 from testbench.navigation.ins.reacquire import update_or_reset
 from testbench.navigation.ins.settings import AirspeedAiding, DragAiding, InsEkfParams
