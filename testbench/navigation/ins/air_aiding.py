@@ -13,12 +13,13 @@ bookkeeping with it).
 from __future__ import annotations
 
 import logging
+import math
 
 import numpy as np
 
 from testbench.core.messages import CorrectionInfo
 from testbench.core.rotor_drag import momentum_drag_per_s
-from testbench.core.units import DEG_TO_RAD
+from testbench.core.units import DEG_TO_RAD, STANDARD_GRAVITY_MPS2
 from testbench.navigation.ins import measurements as meas
 from testbench.navigation.ins.reacquire import update_or_reset
 from testbench.navigation.ins.settings import AirspeedAiding, DragAiding, InsEkfParams
@@ -49,7 +50,7 @@ class AirRelativeAiding:
         self.drag_mu_per_s = None if d is None else (d.coefficient_per_s or momentum_drag_per_s(
             aircraft or {}, "navigation.params.drag_aiding", "give drag_aiding.coefficient_per_s instead"))
         """mu (1/s) of the rotor-drag model; None: no drag aiding."""
-        self._drag_acc = [0.0, 0.0, 0.0, 0.0, 0]  # sums over the interval: f_bx, f_by, v_bx, v_by; count
+        self._drag_acc = [0.0, 0.0, 0.0, 0.0, 0, 0.0]  # sums over the interval: f_bx, f_by, v_bx, v_by; count; f_bz
         self._drag_t0_s: float | None = None
         self._last_drag_ok_t_s: float | None = None  # last drag sample the gate took
         self._last_airspeed_fused_t_s = -np.inf
@@ -74,17 +75,22 @@ class AirRelativeAiding:
         acc[2] += (1 - 2 * (qy * qy + qz * qz)) * vn + 2 * (qx * qy + qw * qz) * ve + 2 * (qx * qz - qw * qy) * vd
         acc[3] += 2 * (qx * qy - qw * qz) * vn + (1 - 2 * (qx * qx + qz * qz)) * ve + 2 * (qy * qz + qw * qx) * vd
         acc[4] += 1
+        acc[5] += float(f_ib_b_mps2[2])
         if self._drag_t0_s is None:
             self._drag_t0_s = t_s
         d = self.drag
         if t_s - self._drag_t0_s < d.interval_s - 1e-9:
             return
         n = acc[4]
-        y, H, R = meas.drag_specific_force(ekf, (acc[0] / n, acc[1] / n), (acc[2] / n, acc[3] / n),
-                                           self.drag_mu_per_s, d.sigma_mps2)
+        mu = self.drag_mu_per_s
+        if d.thrust_scaled:
+            # The rotors drag c omega_i v each, omega_i = sqrt(T_i / k_T), and the thrust is the
+            # only body-z force: T / m = -f_bz, so mu = mu_hover sqrt(-f_bz / g).
+            mu *= math.sqrt(max(-acc[5] / n, 0.1 * STANDARD_GRAVITY_MPS2) / STANDARD_GRAVITY_MPS2)
+        y, H, R = meas.drag_specific_force(ekf, (acc[0] / n, acc[1] / n), (acc[2] / n, acc[3] / n), mu, d.sigma_mps2)
         reset_after_s = d.wind_reset_after_s if ekf.wind_states and d.wind_reset_after_s else 0.0
         self._last_drag_ok_t_s = self._fuse(ekf, "drag", t_s, y, H, R, self._last_drag_ok_t_s, reset_after_s)[1]
-        self._drag_acc = [0.0, 0.0, 0.0, 0.0, 0]
+        self._drag_acc = [0.0, 0.0, 0.0, 0.0, 0, 0.0]
         self._drag_t0_s = None
 
     def correct_airspeed(self, ekf, airspeed_mps: float, t: float) -> CorrectionInfo | None:

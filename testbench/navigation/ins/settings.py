@@ -74,6 +74,13 @@ class DragAiding(ParamsModel):
     formation flight (paper_swarm_relnav: 0.25 m/s^2, 0.5 deg/s turns) the innovations are
     0.008-0.011 / 0.004-0.006 m/s^2 RMS in body x / y, and that scenario sets 0.03 (0.02 and
     0.01 left the position overconfident: the error is not white at 5 Hz)."""
+    thrust_scaled: bool = False
+    """Scale mu by the rotor speed the thrust implies, sqrt(T / (m g)) with T / m the
+    accelerometers' -f_bz averaged over the interval (each rotor drags c omega_i v and
+    omega_i = sqrt(T_i / k_T); the sidecar's mu is at hover). tb_quad in level flight at 4 / 8 m/s
+    holds 0.988 / 0.962 of its weight on thrust (the tilted drag lifts the rest), so its rotors
+    drag 0.6 / 1.9 % less per m/s than the hover mu (0.9 % in a hover tilted into a 5 m/s wind).
+    False: mu at hover, its scale error left to the scale state below."""
     scale_sigma: float = pydantic.Field(0.006, ge=0)
     """Steady-state sigma of the slow part of mu's error, a scale (1 + s) the filter estimates
     (error_model, dsd): the part of the model error that lasts for tens of seconds, which fused
