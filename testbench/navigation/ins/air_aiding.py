@@ -85,7 +85,8 @@ class AirRelativeAiding:
         mu = self.drag_mu_per_s
         if d.thrust_scaled:
             # The rotors drag c omega_i v each, omega_i = sqrt(T_i / k_T), and the thrust is the
-            # only body-z force: T / m = -f_bz, so mu = mu_hover sqrt(-f_bz / g).
+            # only body-z force: T / m = -f_bz, so mu = mu_hover sqrt(-f_bz / g). The floor at
+            # 0.1 g keeps the root real through a near-free-fall (a cut throttle, a tumble).
             mu *= math.sqrt(max(-acc[5] / n, 0.1 * STANDARD_GRAVITY_MPS2) / STANDARD_GRAVITY_MPS2)
         y, H, R = meas.drag_specific_force(ekf, (acc[0] / n, acc[1] / n), (acc[2] / n, acc[3] / n), mu, d.sigma_mps2)
         reset_after_s = d.wind_reset_after_s if ekf.wind_states and d.wind_reset_after_s else 0.0
