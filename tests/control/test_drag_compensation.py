@@ -42,9 +42,9 @@ def test_drag_compensation_holds_the_commanded_speed_into_a_head_wind():
     integrated error times k_vel_i 0.56, 1.7 m/s^2): without the compensation the proportional
     term carries the rest and the quad flies 0.51 m/s short of its command; with it, 0.00003."""
     without = _ground_speed_into_wind(False)
-    with_ff = _ground_speed_into_wind(True)
+    compensated = _ground_speed_into_wind(True)
     assert 4.0 - without.mean() > 0.3  # the saturated integrator's deficit (measured 0.51 m/s)
-    assert abs(with_ff.mean() - 4.0) < 0.1
+    assert abs(compensated.mean() - 4.0) < 0.1
 
 
 def test_drag_compensation_needs_a_rotor_drag_model():
