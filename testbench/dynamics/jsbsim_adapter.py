@@ -217,9 +217,7 @@ class JSBSimDynamics(Dynamics):
         if self._air is not None:
             self._set_turbulence()
         fdm["propulsion/set-running"] = -1
-        if self.kind == "multirotor":
-            self._apply(RotorCommand(motors=(hover_cmd,) * self._n_motors))
-        elif initial.trim and initial.airspeed_mps > 0.0:
+        if self.kind != "multirotor" and initial.trim and initial.airspeed_mps > 0.0:
             try:
                 fdm["simulation/do_simple_trim"] = 1  # full longitudinal trim in level flight
             except jsbsim.TrimFailureError as exc:
