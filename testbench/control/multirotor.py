@@ -28,6 +28,7 @@ import pydantic
 
 from testbench.control.deferred_status import DeferredStatus
 from testbench.control.mixer import Mixer
+from testbench.core.errors import InputError
 from testbench.core.interfaces import BuildContext, Controller
 from testbench.core.messages import GuidanceStatus, NavEstimate, RotorCommand
 from testbench.core.registry import ParamsModel, register
@@ -116,12 +117,14 @@ class MultirotorController(DeferredStatus, Controller):
     max_climb_rate_mps; brake_accel_mps2 (speed-profile deceleration); corner_speed_mps (speed
     at each intermediate waypoint); max_tilt_deg (default: sidecar max_bank_deg);
     accel_mps2: the commanded horizontal speed rises at most this fast (None: a step, limited
-    by the tilt alone); turn_rate_deg_s: fly-by corners, the commanded course turns at most
+    by the tilt alone); accel_jerk_mps3: with accel_mps2, that rate of rise itself changes at
+    most this fast (an S-curve: the speed eases into its rise and out of it onto the new speed,
+    where without it the acceleration steps from 0 to accel_mps2 and back); turn_rate_deg_s: fly-by corners, the commanded course turns at most
     this fast and the next waypoint becomes active R tan(turn / 2) before the corner
     (R = speed / rate), so the track is an arc tangent to both legs (None: fly over each
     waypoint, then turn as fast as the loops allow); turn_accel_deg_s2: with turn_rate_deg_s,
     the turn rate itself changes at most this fast (a rolled-in, rolled-out arc; the turn then
-    starts that much earlier). A formation leader needs all three: its
+    starts that much earlier). A formation leader needs all four: its
     followers see its speed and course only through their relative estimates, and a follower
     r metres away must fly r times the turn rate faster than the leader to keep its slot.
     drag_compensation: the velocity loop adds the horizontal acceleration that cancels the
@@ -140,6 +143,7 @@ class MultirotorController(DeferredStatus, Controller):
         corner_speed_mps: float = pydantic.Field(default=1.0, ge=0.0)
         max_tilt_deg: float | None = pydantic.Field(default=None, gt=0.0, lt=60.0)
         accel_mps2: float | None = pydantic.Field(default=None, gt=0.0)
+        accel_jerk_mps3: float | None = pydantic.Field(default=None, gt=0.0)
         turn_rate_deg_s: float | None = pydantic.Field(default=None, gt=0.0)
         turn_accel_deg_s2: float | None = pydantic.Field(default=None, gt=0.0)
         drag_compensation: bool = False
@@ -181,6 +185,11 @@ class MultirotorController(DeferredStatus, Controller):
         self._max_climb_rate_mps = float(params.max_climb_rate_mps)
         self._accel_h_max_mps2 = G * math.tan(self.max_tilt)  # tilt limit on horizontal acceleration
         self._cmd_accel_mps2 = params.accel_mps2
+        if params.accel_jerk_mps3 is not None and params.accel_mps2 is None:
+            raise InputError("control.params.accel_jerk_mps3: limits how fast the speed's rate of rise changes, "
+                             "so it needs control.params.accel_mps2 (that rate's limit) too")
+        self._cmd_jerk_mps3 = params.accel_jerk_mps3
+        self._speed_rate_cmd = 0.0  # rate of rise of the shaped command's speed (m/s^2), with accel_jerk_mps3
         self._turn_rate_rps = None if params.turn_rate_deg_s is None else params.turn_rate_deg_s * DEG_TO_RAD
         self._turn_accel_rps2 = None if params.turn_accel_deg_s2 is None else params.turn_accel_deg_s2 * DEG_TO_RAD
         self._course_rate_cmd = 0.0  # rate of the shaped command's course (rad/s)
@@ -256,7 +265,17 @@ class MultirotorController(DeferredStatus, Controller):
             return v
         speed, prev_speed = math.hypot(v[0], v[1]), math.hypot(prev[0], prev[1])
         if self._cmd_accel_mps2 is not None:
-            speed = min(speed, prev_speed + self._cmd_accel_mps2 * dt)
+            if self._cmd_jerk_mps3 is None:
+                speed = min(speed, prev_speed + self._cmd_accel_mps2 * dt)
+            elif speed > prev_speed:
+                # As the turn below: the fastest rise that can still ease to zero at the new
+                # speed (rate^2 <= 2 jerk gap), within accel_mps2, its rate changed at jerk.
+                j = self._cmd_jerk_mps3
+                want = min(self._cmd_accel_mps2, math.sqrt(2.0 * j * (speed - prev_speed)))
+                self._speed_rate_cmd += _clip(want - self._speed_rate_cmd, -j * dt, j * dt)
+                speed = min(speed, prev_speed + self._speed_rate_cmd * dt)
+            else:  # slowing (the braking profile's own law) or holding: no rise under way
+                self._speed_rate_cmd = 0.0
         course = math.atan2(v[1], v[0])
         if self._turn_rate_rps is not None and prev_speed > 0.5:
             prev_course = math.atan2(prev[1], prev[0])

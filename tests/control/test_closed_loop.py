@@ -13,6 +13,7 @@ import pytest
 from testbench.control import evaluate as ev
 from testbench.control.design import linearize, roll_bandwidth_rps, roll_lqi
 from testbench.control.fixed_wing import FixedWingController
+from testbench.core.errors import InputError
 
 pytest.importorskip("jsbsim")
 
@@ -153,3 +154,39 @@ def test_turn_rate_of_the_shaped_command_rolls_in_and_out():
     turning = np.asarray(courses[:-2]) < 40.0 - 0.05  # the last tick snaps onto the course
     assert np.abs(np.diff(rate) / dt)[turning].max() <= 0.5 + 1e-6  # rolls in and out at 0.5 deg/s^2
     assert max(courses) <= 40.0 + 1e-6 and courses[-1] == pytest.approx(40.0, abs=1e-6)
+
+
+def test_speed_rise_of_the_shaped_command_is_an_s_curve():
+    """With accel_jerk_mps3 the commanded speed's rate of rise ramps up to accel_mps2 and back
+    to zero at that jerk, and the speed settles on the target without overshoot; without it the
+    rate steps to accel_mps2 at once."""
+    from testbench.control.evaluate_multirotor import waypoint_mission
+    from testbench.control.multirotor import MultirotorController
+
+    ctx = ev.make_context("q")
+    mission = waypoint_mission(ctx, points=[(400.0, 0.0)])
+    dyn = ev.make_dynamics("tb_quad", physics_rate_hz=200.0)
+    dt = 0.02
+
+    def speeds(**kw):
+        params = MultirotorController.Params(max_speed_mps=4.0, accel_mps2=0.25, **kw)
+        ctl = MultirotorController(params, ctx=ctx, mission=mission, aircraft=dyn.aircraft_meta)
+        ctl._guidance_dt_s = dt
+        ctl._v_shaped = (0.0, 0.0, 0.0)
+        return np.array([ctl._shape((4.0, 0.0, 0.0))[0] for _ in range(2000)])
+
+    s = speeds(accel_jerk_mps3=0.05)
+    rate = np.diff(s) / dt
+    assert rate.max() <= 0.25 + 1e-9 and rate.max() > 0.24  # reaches accel_mps2
+    rising = s[1:-1] < 4.0 - 1e-3  # (the last tick snaps onto the speed)
+    assert np.abs(np.diff(rate) / dt)[rising].max() <= 0.05 + 1e-6  # eases in and out at the jerk
+    assert s[0] / dt <= 0.05 * dt + 1e-12  # no step at the start: the first tick rises at jerk dt
+    assert s.max() <= 4.0 + 1e-9 and s[-1] == pytest.approx(4.0, abs=1e-9)
+    assert np.all(np.diff(s) >= 0.0)
+    # 0 -> 4 m/s at 0.25 m/s^2 takes 16 s; the two 5 s ramps add 5 s.
+    assert np.argmax(s >= 4.0 - 1e-6) * dt == pytest.approx(21.0, abs=0.5)  # (20.7: the tail snaps on)
+    step = np.diff(speeds()) / dt
+    assert step[0] == pytest.approx(0.25)  # without: the rate steps at once
+    with pytest.raises(InputError, match="accel_jerk_mps3"):
+        MultirotorController(MultirotorController.Params(max_speed_mps=4.0, accel_jerk_mps3=0.05), ctx=ctx,
+                             mission=mission, aircraft=dyn.aircraft_meta)
