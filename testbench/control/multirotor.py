@@ -119,8 +119,9 @@ class MultirotorController(DeferredStatus, Controller):
     accel_mps2: the commanded horizontal speed rises at most this fast (None: a step, limited
     by the tilt alone); accel_jerk_mps3: with accel_mps2, that rate of rise itself changes at
     most this fast (an S-curve: the speed eases into its rise and out of it onto the new speed,
-    where without it the acceleration steps from 0 to accel_mps2 and back); turn_rate_deg_s: fly-by corners, the commanded course turns at most
-    this fast and the next waypoint becomes active R tan(turn / 2) before the corner
+    where without it the acceleration steps from 0 to accel_mps2 and back; speed decreases
+    keep the braking profile's law); turn_rate_deg_s: fly-by corners, the commanded course
+    turns at most this fast and the next waypoint becomes active R tan(turn / 2) before the corner
     (R = speed / rate), so the track is an arc tangent to both legs (None: fly over each
     waypoint, then turn as fast as the loops allow); turn_accel_deg_s2: with turn_rate_deg_s,
     the turn rate itself changes at most this fast (a rolled-in, rolled-out arc; the turn then

@@ -184,7 +184,9 @@ def test_speed_rise_of_the_shaped_command_is_an_s_curve():
     assert s.max() <= 4.0 + 1e-9 and s[-1] == pytest.approx(4.0, abs=1e-9)
     assert np.all(np.diff(s) >= 0.0)
     # 0 -> 4 m/s at 0.25 m/s^2 takes 16 s; the two 5 s ramps add 5 s.
-    assert np.argmax(s >= 4.0 - 1e-6) * dt == pytest.approx(21.0, abs=0.5)  # (20.7: the tail snaps on)
+    # (20.7 s: in whole ticks the rise meets the speed with 0.016 m/s^2 of its rate left, and the
+    # last tick snaps onto it.)
+    assert np.argmax(s >= 4.0 - 1e-6) * dt == pytest.approx(21.0, abs=0.5)
     step = np.diff(speeds()) / dt
     assert step[0] == pytest.approx(0.25)  # without: the rate steps at once
     with pytest.raises(InputError, match="accel_jerk_mps3"):
