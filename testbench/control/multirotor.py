@@ -6,7 +6,8 @@ v = min(v_max, sqrt(v_end^2 + 2 a_brake d)) (d: distance to go), so it arrives a
 speed v_end (braking at a_brake, well inside its acceleration limit), and switches to the next
 waypoint only once within the acceptance radius (1 m default). After the switch it keeps at
 most v_end^2 / (2 a_max) of momentum past the point (< 1 m). The last waypoint is held
-("hold") or the list loops.
+("hold") or the list loops. The command's speed rise and turn rate are limited (and eased) by
+command_shaping.CommandShaper when the params set those limits.
 
 Gains (pole placement from the sidecar; `multirotor_gains` computes them):
 - rate loop: J w' = M with a first-order motor lag tau: proportional gain k_w = 0.45 / tau
@@ -26,20 +27,22 @@ from dataclasses import dataclass
 import numpy as np
 import pydantic
 
+from testbench.control.command_shaping import CommandShaper, ShapingLimits
+from testbench.control.command_shaping import clip as _clip
+from testbench.control.command_shaping import wrap_pi as _wrap_pi
 from testbench.control.deferred_status import DeferredStatus
 from testbench.control.mixer import Mixer
 from testbench.core.errors import InputError
 from testbench.core.interfaces import BuildContext, Controller
 from testbench.core.messages import GuidanceStatus, NavEstimate, RotorCommand
 from testbench.core.registry import ParamsModel, register
-from testbench.core.units import DEG_TO_RAD, STANDARD_GRAVITY_MPS2
 from testbench.core.rotor_drag import momentum_drag_per_s
+from testbench.core.units import DEG_TO_RAD, STANDARD_GRAVITY_MPS2
 
 G = STANDARD_GRAVITY_MPS2
 # A start tilted less than this is level for the velocity loop's bumpless start
 # (_start_from_present_tilt): 2 deg is the trim against a ~1 m/s wind.
 START_TILT_LEVEL_RAD = math.radians(2.0)
-TWO_PI = 2.0 * math.pi
 
 # The loops below run on plain floats and tuples: numpy's per-call overhead on 3-vectors
 # (np.cross, np.linalg.norm, small products) is tens of times the arithmetic itself.
@@ -48,15 +51,6 @@ TWO_PI = 2.0 * math.pi
 def _floats(v) -> list[float]:
     """A short vector (ndarray or sequence) as a list of Python floats."""
     return v.tolist() if isinstance(v, np.ndarray) else [float(x) for x in v]
-
-
-def _clip(x: float, lo: float, hi: float) -> float:
-    return lo if x < lo else hi if x > hi else x
-
-
-def _wrap_pi(angle_rad: float) -> float:
-    """Angle wrapped into [-pi, pi) (scalar core.rotations.wrap_pi)."""
-    return (angle_rad + math.pi) % TWO_PI - math.pi
 
 
 def _cross(a: tuple[float, float, float], b: tuple[float, float, float]) -> tuple[float, float, float]:
@@ -185,16 +179,14 @@ class MultirotorController(DeferredStatus, Controller):
         self._brake_accel_mps2 = float(params.brake_accel_mps2)
         self._max_climb_rate_mps = float(params.max_climb_rate_mps)
         self._accel_h_max_mps2 = G * math.tan(self.max_tilt)  # tilt limit on horizontal acceleration
-        self._cmd_accel_mps2 = params.accel_mps2
         if params.accel_jerk_mps3 is not None and params.accel_mps2 is None:
             raise InputError("control.params.accel_jerk_mps3: limits how fast the speed's rate of rise changes, "
                              "so it needs control.params.accel_mps2 (that rate's limit) too")
-        self._cmd_jerk_mps3 = params.accel_jerk_mps3
-        self._speed_rate_cmd = 0.0  # rate of rise of the shaped command's speed (m/s^2), with accel_jerk_mps3
         self._turn_rate_rps = None if params.turn_rate_deg_s is None else params.turn_rate_deg_s * DEG_TO_RAD
         self._turn_accel_rps2 = None if params.turn_accel_deg_s2 is None else params.turn_accel_deg_s2 * DEG_TO_RAD
-        self._course_rate_cmd = 0.0  # rate of the shaped command's course (rad/s)
-        self._v_shaped: tuple[float, float, float] | None = None  # last shaped command (accel/turn limits)
+        # The speed-rise and turn limits of the horizontal command (command_shaping.py).
+        self.shaper = CommandShaper(ShapingLimits(params.accel_mps2, params.accel_jerk_mps3,
+                                                  self._turn_rate_rps, self._turn_accel_rps2))
         self._guidance_dt_s = 0.0
         # mu (1/s) of the drag the velocity loop cancels; None: no compensation.
         self._drag_mu_per_s = (momentum_drag_per_s(self.meta, "controller.params.drag_compensation")
@@ -239,9 +231,9 @@ class MultirotorController(DeferredStatus, Controller):
             k = self.max_speed / h
             v = (v[0] * k, v[1] * k, v[2] * k)
         if self.holding:
-            self._v_shaped = v
+            self.shaper.last = v
             return v
-        return self._shape(v)
+        return self.shaper.shape(v, self._guidance_dt_s)
 
     def _flyby_distance_m(self) -> float:
         """Distance before the active waypoint at which a fly-by turn starts (0 without a turn
@@ -257,44 +249,6 @@ class MultirotorController(DeferredStatus, Controller):
             d += 0.5 * self.max_speed * self._turn_rate_rps / self._turn_accel_rps2
         return d
 
-    def _shape(self, v: tuple[float, float, float]) -> tuple[float, float, float]:
-        """The horizontal command within the speed-rise and turn-rate limits of this tick."""
-        prev = self._v_shaped
-        dt = self._guidance_dt_s
-        if prev is None or (self._cmd_accel_mps2 is None and self._turn_rate_rps is None):
-            self._v_shaped = v
-            return v
-        speed, prev_speed = math.hypot(v[0], v[1]), math.hypot(prev[0], prev[1])
-        if self._cmd_accel_mps2 is not None:
-            if self._cmd_jerk_mps3 is None:
-                speed = min(speed, prev_speed + self._cmd_accel_mps2 * dt)
-            elif speed > prev_speed:
-                # As the turn below: the fastest rise that can still ease to zero at the new
-                # speed (rate^2 <= 2 jerk gap), within accel_mps2, its rate changed at jerk.
-                j = self._cmd_jerk_mps3
-                want = min(self._cmd_accel_mps2, math.sqrt(2.0 * j * (speed - prev_speed)))
-                self._speed_rate_cmd += _clip(want - self._speed_rate_cmd, -j * dt, j * dt)
-                speed = min(speed, prev_speed + self._speed_rate_cmd * dt)
-            else:  # slowing (the braking profile's own law) or holding: no rise under way
-                self._speed_rate_cmd = 0.0
-        course = math.atan2(v[1], v[0])
-        if self._turn_rate_rps is not None and prev_speed > 0.5:
-            prev_course = math.atan2(prev[1], prev[0])
-            err = _wrap_pi(course - prev_course)
-            if self._turn_accel_rps2 is None:
-                step = self._turn_rate_rps * dt
-                course = prev_course + _clip(err, -step, step)
-            else:
-                # The fastest rate that can still be brought to zero at the new course
-                # (rate^2 <= 2 accel |error|), within the rate limit, reached at accel.
-                a = self._turn_accel_rps2
-                want = math.copysign(min(self._turn_rate_rps, math.sqrt(2.0 * a * abs(err))), err)
-                self._course_rate_cmd += _clip(want - self._course_rate_cmd, -a * dt, a * dt)
-                step = self._course_rate_cmd * dt
-                course = prev_course + (err if abs(step) >= abs(err) and step * err >= 0 else step)
-        self._v_shaped = (speed * math.cos(course), speed * math.sin(course), v[2])
-        return self._v_shaped
-
     # -- control -------------------------------------------------------------------------
 
     def update(self, t_s: float, estimate: NavEstimate, reference=None) -> RotorCommand:
@@ -306,8 +260,8 @@ class MultirotorController(DeferredStatus, Controller):
             self._prev_pt = tuple(pos)
             self._yaw_sp = yaw
         self._guidance_dt_s = dt
-        if self._v_shaped is None:  # the shaped command starts from the present velocity
-            self._v_shaped = tuple(_floats(estimate.vel_ned_mps))
+        if self.shaper.last is None:  # the shaped command starts from the present velocity
+            self.shaper.last = tuple(_floats(estimate.vel_ned_mps))
             self._start_from_present_tilt(roll, pitch, yaw, self._drag_compensation(estimate))
         v_cmd = self._velocity_command(pos)
         accel_cmd = self._velocity_loop(v_cmd, _floats(estimate.vel_ned_mps), dt, self._drag_compensation(estimate))

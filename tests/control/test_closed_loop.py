@@ -142,12 +142,11 @@ def test_turn_rate_of_the_shaped_command_rolls_in_and_out():
     params = MultirotorController.Params(max_speed_mps=4.0, turn_rate_deg_s=2.0, turn_accel_deg_s2=0.5)
     ctl = MultirotorController(params, ctx=ctx, mission=mission, aircraft=dyn.aircraft_meta)
     dt = 0.02
-    ctl._guidance_dt_s = dt
-    ctl._v_shaped = (4.0, 0.0, 0.0)
+    ctl.shaper.last = (4.0, 0.0, 0.0)
     target = (4.0 * math.cos(math.radians(40.0)), 4.0 * math.sin(math.radians(40.0)), 0.0)  # 40 deg right
     courses = []
     for _ in range(2000):
-        v = ctl._shape(target)
+        v = ctl.shaper.shape(target, dt)
         courses.append(math.degrees(math.atan2(v[1], v[0])))
     rate = np.diff(courses) / dt
     assert rate.max() <= 2.0 + 1e-6 and rate.max() > 1.9  # reaches the rate limit
@@ -171,9 +170,8 @@ def test_speed_rise_of_the_shaped_command_is_an_s_curve():
     def speeds(**kw):
         params = MultirotorController.Params(max_speed_mps=4.0, accel_mps2=0.25, **kw)
         ctl = MultirotorController(params, ctx=ctx, mission=mission, aircraft=dyn.aircraft_meta)
-        ctl._guidance_dt_s = dt
-        ctl._v_shaped = (0.0, 0.0, 0.0)
-        return np.array([ctl._shape((4.0, 0.0, 0.0))[0] for _ in range(2000)])
+        ctl.shaper.last = (0.0, 0.0, 0.0)
+        return np.array([ctl.shaper.shape((4.0, 0.0, 0.0), dt)[0] for _ in range(2000)])
 
     s = speeds(accel_jerk_mps3=0.05)
     rate = np.diff(s) / dt
