@@ -99,6 +99,13 @@ def _threshold_table(thresholds: dict, thr: ThresholdResult, flat: dict) -> Tabl
     return Table("Thresholds (regression gates)", ["metric", "bound", "value", "result"], rows, status_col=3)
 
 
+def _range_label(key: str) -> str:
+    """'60_120m' -> '60-120 m', '240m_up' -> 'from 240 m' (relnav.by_range keys)."""
+    if key.endswith("m_up"):
+        return f"from {key[:-4]} m"
+    return key[:-1].replace("_", "-") + " m"
+
+
 def _metric_rows(flat: dict, keys) -> list[list[str]]:
     return [[k, fmt(flat[k])] for k in keys if k in flat]
 
@@ -176,11 +183,19 @@ def build_report(run_dir: str | Path, result: MetricsResult | None = None) -> Re
     elif examples:
         sections.append(Section("Scene matching (ISMN)", "ismn", figures=examples))
     if result.relnav is not None:
-        rows = [[k, fmt(p.error_m.mean if p.error_m else None), fmt(p.error_m.rms if p.error_m else None),
-                 fmt(p.error_m.max if p.error_m else None), fmt(p.id_correct_rate), fmt(p.count)] for k, p in result.relnav.pairs.items()]
-        t_pairs = Table("Relative navigation per pair", ["pair", "mean (m)", "RMS (m)", "max (m)", "ID correct", "samples"], rows)
-        t_all = Table("Relative navigation", ["metric", "value"], _metric_rows(flat, [k for k in flat if k.startswith("relnav.") and ".pairs." not in k and not k.endswith(".n")]))
-        sections.append(Section("Relative navigation", "relnav", [t_all, t_pairs], _figs(fe.relnav_figure(record))))
+        def pair_rows(groups, label) -> list[list[str]]:
+            return [[label(k), fmt(p.error_m.mean if p.error_m else None),
+                     fmt(p.error_m.rms if p.error_m else None), fmt(p.error_m.p95 if p.error_m else None),
+                     fmt(p.error_m.max if p.error_m else None), fmt(p.id_correct_rate), fmt(p.count)]
+                    for k, p in groups.items()]
+
+        head = ["mean (m)", "RMS (m)", "p95 (m)", "max (m)", "ID correct", "samples"]
+        t_range = Table("Relative navigation by true range", ["range"] + head,
+                        pair_rows(result.relnav.by_range, _range_label))
+        t_pairs = Table("Relative navigation per pair", ["pair"] + head, pair_rows(result.relnav.pairs, lambda k: k))
+        t_all = Table("Relative navigation", ["metric", "value"], _metric_rows(
+            flat, [k for k in flat if k.startswith("relnav.") and ".pairs." not in k and ".by_range." not in k and not k.endswith(".n")]))
+        sections.append(Section("Relative navigation", "relnav", [t_all, t_range, t_pairs], _figs(fe.relnav_figure(record))))
     frm_fig = fe.formation_figure(record)
     if frm_fig is not None:
         rows = _metric_rows(flat, [k for k in flat if k.startswith("formation.") and not k.endswith(".n")])

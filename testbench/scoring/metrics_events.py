@@ -82,6 +82,23 @@ def relnav_errors_m(rel: pd.DataFrame) -> np.ndarray:
     )
 
 
+RELNAV_RANGE_EDGES_M = (60.0, 120.0, 180.0, 240.0)
+"""Edges (m) of relnav.by_range: a swarm's rings of neighbours fall in separate bins at the
+usual spacings (the paper's arrowhead: 100 m neighbours, the 173 m second ring, 200 m along a
+row's line; a column 60 m apart)."""
+
+
+def range_bin_keys(edges_m=RELNAV_RANGE_EDGES_M) -> list[str]:
+    """Keys of the bins [0, e0), [e0, e1), ..., [e_last, inf): "0_60m", ..., "240m_up"."""
+    lo = (0.0,) + tuple(edges_m)
+    return [f"{a:g}_{b:g}m" for a, b in zip(lo[:-1], edges_m)] + [f"{lo[-1]:g}m_up"]
+
+
+def relnav_ranges_m(rel: pd.DataFrame) -> np.ndarray:
+    """True range |truth relative position| (m) per row, shape (n,)."""
+    return np.sqrt(sum(column(rel, f"truth_{a}_m") ** 2 for a in ("north", "east", "down")))
+
+
 def pair_key(observer_id: str, peer_id: str) -> str:
     """Key of one observer -> peer pair in relnav.pairs (no dots: keys are dotted paths)."""
     return f"{observer_id}_to_{peer_id}".replace(".", "_")
@@ -126,6 +143,13 @@ def compute_relnav(record: RunRecord) -> RelnavMetrics | None:
     for a, b in sorted(set(zip(obs, peer))):
         sel = (obs == a) & (peer == b)
         pairs[pair_key(a, b)] = RelnavPair(error_m=error_stats(err[sel]), id_correct_rate=_id_rate(rel[sel]), count=int(sel.sum()))
+    by_range = {}
+    rng = relnav_ranges_m(rel)
+    bin_of = np.where(np.isfinite(rng), np.digitize(rng, RELNAV_RANGE_EDGES_M), -1)  # -1: no truth, no bin
+    for k, key in enumerate(range_bin_keys()):
+        sel = bin_of == k
+        if sel.any():
+            by_range[key] = RelnavPair(error_m=error_stats(err[sel]), id_correct_rate=_id_rate(rel[sel]), count=int(sel.sum()))
     return RelnavMetrics(
         error_m=error_stats(err),
         id_correct_rate=_id_rate(rel),
@@ -135,6 +159,7 @@ def compute_relnav(record: RunRecord) -> RelnavMetrics | None:
         within_3sigma_rate=within,
         count=int(len(rel)),
         pairs=pairs,
+        by_range=by_range,
     )
 
 

@@ -198,7 +198,12 @@ class RelnavMetrics(_Section):
     track_id_ambiguous_rate: fraction of those track-frames whose detection imaged several
     vehicles alike;
     within_3sigma_rate: fraction with error <= 3 sigma_m (a calibration check);
-    pairs: "<observer>_to_<peer>" -> RelnavPair.
+    pairs: "<observer>_to_<peer>" -> RelnavPair;
+    by_range: the same figures by the pair's TRUE range, "<lo>_<hi>m" (or "<lo>m_up") ->
+    RelnavPair over metrics_events.RELNAV_RANGE_EDGES_M; empty bins left out. An observer's own
+    attitude error moves an estimate across the line of sight in proportion to the range, so a
+    swarm's overall figure depends on how far apart its vehicles fly: the paper's "0.75 m at
+    100 m spacing" compares with the bin that holds the nearest neighbours.
     """
 
     error_m: ErrorStats | None = None
@@ -209,6 +214,7 @@ class RelnavMetrics(_Section):
     within_3sigma_rate: float | None = None
     count: int = 0
     pairs: Mapping[str, RelnavPair] = field(default_factory=dict)
+    by_range: Mapping[str, RelnavPair] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

@@ -237,6 +237,30 @@ def test_relnav_id_rate_leaves_out_rows_without_a_check():
     assert res.relnav.id_correct_rate is None
 
 
+def test_relnav_by_range_bins_the_rows_by_their_true_range():
+    """relnav.by_range: the same error figures per bin of the pair's TRUE range (not the
+    estimate's), half-open bins [lo, hi), empty bins left out, rows without truth in none."""
+    tel = straight_telemetry(n=20, vehicle_id="a")
+    truth_north = [50.0, 100.0, 119.9, 120.0, 300.0, np.nan]
+    err_east = [0.1, 0.2, 0.4, 0.8, 1.6, 3.2]
+    rel = pd.DataFrame({"t_s": np.arange(6.0), "vehicle_id": ["a"] * 6, "peer_id": ["b"] * 6,
+                        # estimates 200 m off in north would land elsewhere: the bin is the truth's
+                        "est_north_m": np.nan_to_num(truth_north), "est_east_m": err_east, "est_down_m": [0.0] * 6,
+                        "truth_north_m": truth_north, "truth_east_m": [0.0] * 6, "truth_down_m": [0.0] * 6,
+                        "sigma_m": [1.0] * 6, "id_correct": [1.0, 1.0, 0.0, 1.0, 1.0, 1.0]})
+    res = score_record(record_of(tel, {"relnav": rel}, vehicles=[{"id": "a"}]), metrics=[])
+    by = res.relnav.by_range
+    assert list(by) == ["0_60m", "60_120m", "120_180m", "240m_up"]
+    assert by["0_60m"].count == 1 and by["0_60m"].error_m.max == pytest.approx(0.1)
+    assert by["60_120m"].count == 2 and by["60_120m"].error_m.mean == pytest.approx(0.3)
+    assert by["60_120m"].id_correct_rate == pytest.approx(0.5)
+    assert by["120_180m"].error_m.mean == pytest.approx(0.8)  # 120 m itself opens the next bin
+    assert by["240m_up"].error_m.mean == pytest.approx(1.6)
+    assert sum(b.count for b in by.values()) == 5  # the row without truth is in no bin
+    flat = res.flatten()
+    assert flat["relnav.by_range.60_120m.error_m.mean"] == pytest.approx(0.3)
+
+
 def test_relnav_ambiguous_rate_counts_the_undecidable_rows():
     """Rows whose last bearing imaged several vehicles alike (id_ambiguous 1, id_correct nan)
     are left out of id_correct_rate and counted in id_ambiguous_rate; rows with no check at all
