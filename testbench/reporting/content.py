@@ -106,6 +106,12 @@ def _range_label(key: str) -> str:
     return key[:-1].replace("_", "-") + " m"
 
 
+def _relnav_rows(groups: dict, label) -> list[list[str]]:
+    """Table rows of relnav groups (pairs or range bins: key -> RelnavPair), label(key) first."""
+    return [[label(k)] + [fmt(getattr(p.error_m, s) if p.error_m else None) for s in ("mean", "rms", "p95", "max")]
+            + [fmt(p.id_correct_rate), fmt(p.count)] for k, p in groups.items()]
+
+
 def _metric_rows(flat: dict, keys) -> list[list[str]]:
     return [[k, fmt(flat[k])] for k in keys if k in flat]
 
@@ -183,16 +189,10 @@ def build_report(run_dir: str | Path, result: MetricsResult | None = None) -> Re
     elif examples:
         sections.append(Section("Scene matching (ISMN)", "ismn", figures=examples))
     if result.relnav is not None:
-        def pair_rows(groups, label) -> list[list[str]]:
-            return [[label(k), fmt(p.error_m.mean if p.error_m else None),
-                     fmt(p.error_m.rms if p.error_m else None), fmt(p.error_m.p95 if p.error_m else None),
-                     fmt(p.error_m.max if p.error_m else None), fmt(p.id_correct_rate), fmt(p.count)]
-                    for k, p in groups.items()]
-
         head = ["mean (m)", "RMS (m)", "p95 (m)", "max (m)", "ID correct", "samples"]
         t_range = Table("Relative navigation by true range", ["range"] + head,
-                        pair_rows(result.relnav.by_range, _range_label))
-        t_pairs = Table("Relative navigation per pair", ["pair"] + head, pair_rows(result.relnav.pairs, lambda k: k))
+                        _relnav_rows(result.relnav.by_range, _range_label))
+        t_pairs = Table("Relative navigation per pair", ["pair"] + head, _relnav_rows(result.relnav.pairs, str))
         t_all = Table("Relative navigation", ["metric", "value"], _metric_rows(
             flat, [k for k in flat if k.startswith("relnav.") and ".pairs." not in k and ".by_range." not in k and not k.endswith(".n")]))
         sections.append(Section("Relative navigation", "relnav", [t_all, t_range, t_pairs], _figs(fe.relnav_figure(record))))

@@ -126,6 +126,11 @@ def _ambiguous_rate(rel: pd.DataFrame) -> float | None:
     return float(np.mean(amb == 1.0)) if len(amb) else None
 
 
+def _relnav_group(rel: pd.DataFrame, err: np.ndarray, sel: np.ndarray) -> RelnavPair:
+    """The figures of the rows sel (bool, (n,)) of table relnav, err its errors (n,)."""
+    return RelnavPair(error_m=error_stats(err[sel]), id_correct_rate=_id_rate(rel[sel]), count=int(sel.sum()))
+
+
 def compute_relnav(record: RunRecord) -> RelnavMetrics | None:
     """RelnavMetrics from events/relnav.parquet, overall and per observer -> peer pair, and the
     decoded track IDs from events/relnav_id.parquet."""
@@ -141,15 +146,10 @@ def compute_relnav(record: RunRecord) -> RelnavMetrics | None:
     obs = rel["vehicle_id"].astype(str).to_numpy()
     peer = rel["peer_id"].astype(str).to_numpy()
     for a, b in sorted(set(zip(obs, peer))):
-        sel = (obs == a) & (peer == b)
-        pairs[pair_key(a, b)] = RelnavPair(error_m=error_stats(err[sel]), id_correct_rate=_id_rate(rel[sel]), count=int(sel.sum()))
-    by_range = {}
+        pairs[pair_key(a, b)] = _relnav_group(rel, err, (obs == a) & (peer == b))
     rng = relnav_ranges_m(rel)
     bin_of = np.where(np.isfinite(rng), np.digitize(rng, RELNAV_RANGE_EDGES_M), -1)  # -1: no truth, no bin
-    for k, key in enumerate(range_bin_keys()):
-        sel = bin_of == k
-        if sel.any():
-            by_range[key] = RelnavPair(error_m=error_stats(err[sel]), id_correct_rate=_id_rate(rel[sel]), count=int(sel.sum()))
+    by_range = {key: _relnav_group(rel, err, bin_of == k) for k, key in enumerate(range_bin_keys()) if (bin_of == k).any()}
     return RelnavMetrics(
         error_m=error_stats(err),
         id_correct_rate=_id_rate(rel),
