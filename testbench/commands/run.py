@@ -21,6 +21,9 @@ def register(subparsers) -> None:
     p.add_argument("--pdf", action="store_true", help="also write report.pdf")
     p.add_argument("--save-frames", type=int, metavar="N", default=0, help="save every Nth camera frame as PNG under OUT/frames")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--processes", type=int, default=1, metavar="N",
+                   help="run the vehicles' sensors, navigation and control in N worker processes (a swarm on "
+                        "several cores; the same record as one process; Linux, not with --save-frames)")
     p.add_argument("--check", action="store_true",
                    help="only check the scenario: build every vehicle, open every map, set the initial state, "
                         "print the resolved scenario (YAML) and exit 0 (2 on bad input) without flying or writing")
@@ -47,12 +50,14 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path("reports") / loaded.scenario.name
     if args.save_frames < 0:
         raise InputError(f"--save-frames {args.save_frames}: expected a non-negative integer")
+    if args.processes < 1:
+        raise InputError(f"--processes {args.processes}: expected a positive integer")
     bar = _progress(loaded.scenario.duration_s, disabled=args.quiet)
     sink = _frame_saver(out / "frames", args.save_frames) if args.save_frames else None
     try:
         outcome = run_scenario(
             loaded, out, realtime=args.realtime, on_progress=bar.update_to, frame_sink=sink,
-            report=not args.no_report, pdf=args.pdf,
+            report=not args.no_report, pdf=args.pdf, processes=args.processes,
         )
     finally:
         bar.close()

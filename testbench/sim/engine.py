@@ -20,8 +20,9 @@ import math
 import time
 from dataclasses import dataclass
 from functools import reduce
-from typing import Any, Callable
+from typing import Any, Callable, Mapping
 
+from testbench.core.errors import InputError
 from testbench.core.messages import GnssFix, ImuSample
 from testbench.sim.recorder import Recorder
 from testbench.sim.vehicle import VehicleRuntime, initial_estimate
@@ -44,12 +45,43 @@ class EngineResult:
     aborted: BaseException | None = None
 
 
+class Pacer:
+    """The loop's wall clock: progress about once per simulated second, pacing to the wall
+    clock with the largest lag kept (engine.realtime), and the EngineResult at the end."""
+
+    def __init__(self, engine: "Engine"):
+        self.engine = engine
+        self.t_wall0 = time.perf_counter()
+        self.max_lag_s = 0.0
+        self._next_progress_s = 1.0
+
+    def after(self, k: int) -> None:
+        """Called once the dynamics reached tick k."""
+        e = self.engine
+        t_s = k * e.dt_s
+        if e.on_progress is not None and t_s >= self._next_progress_s:
+            e.on_progress(t_s)
+            self._next_progress_s = math.floor(t_s) + 1.0
+        if e.realtime:
+            lag = (time.perf_counter() - self.t_wall0) - t_s
+            if lag < 0.0:
+                time.sleep(-lag)
+            else:
+                self.max_lag_s = max(self.max_lag_s, lag)
+
+    def result(self, k: int, aborted: BaseException | None) -> EngineResult:
+        wall = time.perf_counter() - self.t_wall0
+        return EngineResult(sim_time_s=k * self.engine.dt_s, wall_time_s=wall, ticks=k,
+                            max_realtime_lag_s=self.max_lag_s, aborted=aborted)
+
+
 class Engine:
     """Runs vehicles for duration_s at physics_rate_hz and records them at record_rate_hz.
 
     on_progress(t_s) is called about once per simulated second; realtime paces the loop to
     the wall clock (max lag reported); frame_sink(vehicle_id, sensor_name, frame) receives
-    every camera-like measurement (for --save-frames).
+    every camera-like measurement (for --save-frames); processes > 1 runs the vehicles' own
+    stacks in that many worker processes (sim/parallel.py; not with a frame sink).
     """
 
     def __init__(
@@ -65,7 +97,12 @@ class Engine:
         on_progress: Callable[[float], None] | None = None,
         frame_sink: Callable[[str, str, Any], None] | None = None,
         formation: Any = None,
+        processes: int = 1,
     ):
+        if processes > 1 and frame_sink is not None:
+            raise InputError("--processes: frames cannot be saved (--save-frames) from worker processes; "
+                             "expected --processes 1 with --save-frames")
+        self.processes = int(processes)
         self.vehicles = vehicles
         self.by_id = {v.id: v for v in vehicles}
         self.formation = formation
@@ -95,11 +132,13 @@ class Engine:
 
     def run(self) -> EngineResult:
         """The loop; a SimulationAborted ends it early and is returned, not raised."""
+        if self.processes > 1 and len(self.vehicles) > 1:
+            from testbench.sim.parallel import run_parallel
+
+            return run_parallel(self, self.processes)
         truths = _LazyTruths(self._truth_getters())
         rec = self.recorder
-        t_wall0 = time.perf_counter()
-        max_lag = 0.0
-        next_progress = 1.0
+        pacer = Pacer(self)
         k = 0
         aborted: BaseException | None = None
         try:
@@ -109,38 +148,45 @@ class Engine:
                 for v in self.vehicles:
                     self._sense(v, k, t_s, truths)
                 for v in self.vehicles:
-                    if k % v.control_every == 0:
-                        v.command = v.controller.update(t_s, v.navigator.estimate(), self._reference(v, t_s))
+                    self._control(v, k, t_s)
                 if k % self.record_every == 0:
                     for v in self.vehicles:
                         truth = v.dynamics.truth()
                         rec.record(
                             v.id, truth, v.navigator.estimate(), v.command_values(), v.controller.status(),
-                            gnss_available=(t_s - v.last_gnss_t_s) <= v.gnss_timeout_s,
+                            gnss_available=self._gnss_available(v, t_s),
                         )
                     if self.formation is not None:
                         self._record_formation(t_s)
                 if k >= self.n_ticks:
                     break
-                step = min(self._gcd - (k % self._gcd), self.n_ticks - k)
-                for v in self.vehicles:
-                    v.dynamics.advance(v.command, step)
-                k += step
-                if self.on_progress is not None and k * self.dt_s >= next_progress:
-                    self.on_progress(k * self.dt_s)
-                    next_progress = math.floor(k * self.dt_s) + 1.0
-                if self.realtime:
-                    lag = (time.perf_counter() - t_wall0) - k * self.dt_s
-                    if lag < 0.0:
-                        time.sleep(-lag)
-                    else:
-                        max_lag = max(max_lag, lag)
+                k = self._advance(k)
+                pacer.after(k)
         except Exception as exc:  # noqa: BLE001 -- classified by the runner
             aborted = exc
-        wall = time.perf_counter() - t_wall0
-        return EngineResult(sim_time_s=k * self.dt_s, wall_time_s=wall, ticks=k, max_realtime_lag_s=max_lag, aborted=aborted)
+        return pacer.result(k, aborted)
 
-    def _sense(self, v: VehicleRuntime, k: int, t_s: float, truths: _LazyTruths) -> None:
+    def _control(self, v: VehicleRuntime, k: int, t_s: float) -> bool:
+        """At a tick of v's control rate its controller turns the estimate into the command
+        held until the next one (True); otherwise nothing (False)."""
+        if k % v.control_every:
+            return False
+        v.command = v.controller.update(t_s, v.navigator.estimate(), self._reference(v, t_s))
+        return True
+
+    @staticmethod
+    def _gnss_available(v: VehicleRuntime, t_s: float) -> bool:
+        """Whether v fused a GNSS fix within its GNSS timeout (telemetry column gnss_available)."""
+        return (t_s - v.last_gnss_t_s) <= v.gnss_timeout_s
+
+    def _advance(self, k: int) -> int:
+        """Every vehicle's dynamics to the next tick where anything runs; returns that tick."""
+        step = min(self._gcd - (k % self._gcd), self.n_ticks - k)
+        for v in self.vehicles:
+            v.dynamics.advance(v.command, step)
+        return k + step
+
+    def _sense(self, v: VehicleRuntime, k: int, t_s: float, truths: Mapping) -> None:
         view = None
         for slot in v.sensors:
             if k % slot.every:

@@ -60,8 +60,10 @@ def build_engine(
     realtime: bool = False,
     on_progress: Callable[[float], None] | None = None,
     frame_sink: Callable[[str, str, Any], None] | None = None,
+    processes: int = 1,
 ) -> tuple[Engine, RunWorld, Recorder]:
-    """Assemble the world, the vehicles and the engine of a scenario (no I/O of outputs)."""
+    """Assemble the world, the vehicles and the engine of a scenario (no I/O of outputs);
+    processes: worker processes for the vehicles' stacks (Engine)."""
     scn = loaded.scenario
     streams = RngStreams(scn.seed if seed is None else seed)
     world = RunWorld(scn.world, origin_of(loaded))
@@ -79,6 +81,7 @@ def build_engine(
     engine = Engine(
         vehicles, world, scn.physics_rate_hz, scn.duration_s, record_every, recorder,
         realtime=realtime, on_progress=on_progress, frame_sink=frame_sink, formation=scn.formation,
+        processes=processes,
     )
     return engine, world, recorder
 
@@ -107,13 +110,15 @@ def run_scenario(
     frame_sink: Callable[[str, str, Any], None] | None = None,
     report: bool = True,
     pdf: bool = False,
+    processes: int = 1,
 ) -> RunOutcome:
-    """Fly the scenario and write the output contract into out_dir."""
+    """Fly the scenario and write the output contract into out_dir (processes: see Engine)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     for stale in ("metrics.json", "run.json", "report.html", "report.pdf", "map_preview.png"):
         (out / stale).unlink(missing_ok=True)  # never leave a previous run's verdict behind
-    engine, world, recorder = build_engine(loaded, seed=seed, realtime=realtime, on_progress=on_progress, frame_sink=frame_sink)
+    engine, world, recorder = build_engine(loaded, seed=seed, realtime=realtime, on_progress=on_progress,
+                                           frame_sink=frame_sink, processes=processes)
     result = engine.run()
     if result.aborted is not None and not isinstance(result.aborted, SimulationAborted):
         raise result.aborted  # a bug or a user error surfaced mid-run: not a flight outcome
