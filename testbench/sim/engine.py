@@ -137,7 +137,6 @@ class Engine:
 
             return run_parallel(self, self.processes)
         truths = _LazyTruths(self._truth_getters())
-        rec = self.recorder
         pacer = Pacer(self)
         k = 0
         aborted: BaseException | None = None
@@ -150,14 +149,8 @@ class Engine:
                 for v in self.vehicles:
                     self._control(v, k, t_s)
                 if k % self.record_every == 0:
-                    for v in self.vehicles:
-                        truth = v.dynamics.truth()
-                        rec.record(
-                            v.id, truth, v.navigator.estimate(), v.command_values(), v.controller.status(),
-                            gnss_available=self._gnss_available(v, t_s),
-                        )
-                    if self.formation is not None:
-                        self._record_formation(t_s)
+                    self._record_tick(t_s, ((v, v.dynamics.truth(), v.navigator.estimate(), v.controller.status(),
+                                             self._gnss_available(v, t_s)) for v in self.vehicles))
                 if k >= self.n_ticks:
                     break
                 k = self._advance(k)
@@ -173,6 +166,14 @@ class Engine:
             return False
         v.command = v.controller.update(t_s, v.navigator.estimate(), self._reference(v, t_s))
         return True
+
+    def _record_tick(self, t_s: float, rows) -> None:
+        """The telemetry rows of a record tick, rows (vehicle, truth, estimate, guidance status,
+        GNSS flag) in scenario order, then the formation's slot errors."""
+        for v, truth, est, status, gnss_ok in rows:
+            self.recorder.record(v.id, truth, est, v.command_values(), status, gnss_available=gnss_ok)
+        if self.formation is not None:
+            self._record_formation(t_s)
 
     @staticmethod
     def _gnss_available(v: VehicleRuntime, t_s: float) -> bool:

@@ -167,11 +167,7 @@ def run_parallel(engine, processes: int):
                 if command is not None:
                     v.command = command
             if record_due:
-                for v in engine.vehicles:
-                    est, status_, gnss_ok = out[v.id][2]
-                    rec.record(v.id, truths[v.id], est, v.command_values(), status_, gnss_available=gnss_ok)
-                if engine.formation is not None:
-                    engine._record_formation(t_s)
+                engine._record_tick(t_s, ((v, truths[v.id], *out[v.id][2]) for v in engine.vehicles))
             if k >= engine.n_ticks:
                 break
             k = engine._advance(k)
