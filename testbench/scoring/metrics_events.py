@@ -149,7 +149,11 @@ def compute_relnav(record: RunRecord) -> RelnavMetrics | None:
         pairs[pair_key(a, b)] = _relnav_group(rel, err, (obs == a) & (peer == b))
     rng = relnav_ranges_m(rel)
     bin_of = np.where(np.isfinite(rng), np.digitize(rng, RELNAV_RANGE_EDGES_M), -1)  # -1: no truth, no bin
-    by_range = {key: _relnav_group(rel, err, bin_of == k) for k, key in enumerate(range_bin_keys()) if (bin_of == k).any()}
+    by_range = {}
+    for k, key in enumerate(range_bin_keys()):
+        sel = bin_of == k
+        if sel.any():
+            by_range[key] = _relnav_group(rel, err, sel)
     return RelnavMetrics(
         error_m=error_stats(err),
         id_correct_rate=_id_rate(rel),

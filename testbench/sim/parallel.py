@@ -128,7 +128,6 @@ def run_parallel(engine, processes: int):
     log = _CallLog()
     try:
         engine.start()
-        truths_main = _LazyTruths(engine._truth_getters())
         n = max(1, min(int(processes), len(engine.vehicles)))
         groups = [[v.id for i, v in enumerate(engine.vehicles) if i % n == w] for w in range(n)]
         main_group = [engine.by_id[i] for i in groups[0]]
@@ -146,7 +145,7 @@ def run_parallel(engine, processes: int):
                 conn.send((k, t_s, truths, record_due))
             engine.recorder = log  # the main group's calls too wait for their turn in the record
             try:
-                out = _tick_group(engine, main_group, k, t_s, truths_main, record_due, log)
+                out = _tick_group(engine, main_group, k, t_s, truths, record_due, log)
             finally:
                 engine.recorder = rec
             for p, conn in workers:
