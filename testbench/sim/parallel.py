@@ -241,6 +241,7 @@ def run_parallel(engine, processes: int):
         while True:
             t_s = k * engine.dt_s
             record_due = k % engine.record_every == 0
+            tick_truths = {v.id: v.dynamics.truth() for v in main_group}  # before the wait: off the workers' path
             theirs, results, worker_abort = workers.receive(t_s)
             if worker_abort is not None:
                 # It failed in the last tick (its sensing, control or dynamics); so the run ends
@@ -249,7 +250,6 @@ def run_parallel(engine, processes: int):
                     _replay(engine, rec, waiting, results)
                     k = k_waiting
                 raise worker_abort
-            tick_truths = {v.id: v.dynamics.truth() for v in main_group}
             for t in theirs:
                 tick_truths.update(t)
             for p, conn, ids in workers.items:
