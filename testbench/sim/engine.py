@@ -167,25 +167,23 @@ class Engine:
         v.command = v.controller.update(t_s, v.navigator.estimate(), self._reference(v, t_s))
         return True
 
-    def _record_tick(self, t_s: float, rows, truths: Mapping[str, Any] | None = None) -> None:
+    def _record_tick(self, t_s: float, rows) -> None:
         """The telemetry rows of a record tick, rows (vehicle, truth, estimate, guidance status,
-        GNSS flag) in scenario order, then the formation's slot errors (from `truths`, vehicle
-        id -> TruthState at t_s, when given; else from the dynamics, which are at t_s)."""
+        GNSS flag) in scenario order, then the formation's slot errors."""
         for v, truth, est, status, gnss_ok in rows:
             self.recorder.record(v.id, truth, est, v.command_values(), status, gnss_available=gnss_ok)
         if self.formation is not None:
-            self._record_formation(t_s, truths)
+            self._record_formation(t_s)
 
     @staticmethod
     def _gnss_available(v: VehicleRuntime, t_s: float) -> bool:
         """Whether v fused a GNSS fix within its GNSS timeout (telemetry column gnss_available)."""
         return (t_s - v.last_gnss_t_s) <= v.gnss_timeout_s
 
-    def _advance(self, k: int, vehicles: list[VehicleRuntime] | None = None) -> int:
-        """The dynamics of `vehicles` (default: every vehicle) to the next tick where anything
-        runs; returns that tick."""
+    def _advance(self, k: int) -> int:
+        """Every vehicle's dynamics to the next tick where anything runs; returns that tick."""
         step = min(self._gcd - (k % self._gcd), self.n_ticks - k)
-        for v in self.vehicles if vehicles is None else vehicles:
+        for v in self.vehicles:
             v.dynamics.advance(v.command, step)
         return k + step
 
@@ -281,7 +279,7 @@ class Engine:
                     ref = out
         return ref
 
-    def _record_formation(self, t_s: float, truths: Mapping[str, Any] | None = None) -> None:
+    def _record_formation(self, t_s: float) -> None:
         """Slot errors from TRUTH: each vehicle minus (leader + R(leader course) (slot - slot_leader));
         for a column (formation.kind), each vehicle minus its place on the leader's true path
         (trail.column_errors).
@@ -294,9 +292,8 @@ class Engine:
         from testbench.control.trail import Trail, column_errors
 
         f = self.formation
-        truth = (lambda vid: self.by_id[vid].dynamics.truth()) if truths is None else truths.__getitem__
-        leader = truth(f.leader)
-        pos = {vid: truth(vid).pos_ned_m for vid in f.slots}
+        leader = self.by_id[f.leader].dynamics.truth()
+        pos = {vid: self.by_id[vid].dynamics.truth().pos_ned_m for vid in f.slots}
         slots = {k: tuple(s) for k, s in f.slots.items()}
         if f.kind == "column":
             # The leader's true path, started as a straight line behind it along its heading.
