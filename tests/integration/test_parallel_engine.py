@@ -83,3 +83,40 @@ def test_cli_refuses_zero_processes(tmp_path):
     )
     assert proc.returncode == 2
     assert "--processes 0: expected a positive integer" in proc.stderr
+
+
+def _dynamics_fail_at(engine, vehicle_index: int, t_fail_s: float) -> None:
+    """Make one vehicle's dynamics end the flight once they step past t_fail_s (before the
+    fork: whichever process steps that vehicle inherits it)."""
+    v = engine.vehicles[vehicle_index]
+    advance = v.dynamics.advance
+    state = {"t_s": 0.0}
+
+    def failing(command, n_steps):
+        state["t_s"] += n_steps * engine.dt_s
+        if state["t_s"] > t_fail_s:
+            raise SimulationAborted("NaN in the flight dynamics state", t_s=state["t_s"], vehicle_id=v.id)
+        advance(command, n_steps)
+
+    v.dynamics.advance = failing
+
+
+@pytest.mark.parametrize("vehicle_index", [3, 4])  # of the worker's group / of the main group
+def test_a_dynamics_abort_keeps_the_single_process_record(vehicle_index):
+    """A flight ended by a vehicle's dynamics (NaN, the ground) keeps the record a
+    single-process run keeps (every table up to and including the failing tick), whichever
+    process flies that vehicle's stack."""
+    tables = {}
+    for n in (1, 2):
+        loaded = load_scenario(SWARM, ["duration_s=1.5"])
+        engine, _, recorder = build_engine(loaded, processes=n)
+        _dynamics_fail_at(engine, vehicle_index, 1.2)  # after the first relnav rows (1.0 s)
+        result = engine.run()
+        assert isinstance(result.aborted, SimulationAborted)
+        assert result.aborted.vehicle_id == f"uav{vehicle_index}"
+        tables[n] = (result.ticks, recorder.telemetry_table(), recorder.event_tables())
+    (ticks1, tel1, ev1), (ticks2, tel2, ev2) = tables[1], tables[2]
+    assert ticks1 == ticks2 and tel1.num_rows > 0
+    assert tel1.to_pandas().equals(tel2.to_pandas())  # pandas: NaN equals NaN (not so in pyarrow)
+    assert ev1.keys() == ev2.keys() and "relnav" in ev1
+    assert all(ev1[name].to_pandas().equals(ev2[name].to_pandas()) for name in ev1)
