@@ -86,8 +86,8 @@ def test_cli_refuses_zero_processes(tmp_path):
 
 
 def _dynamics_fail_at(engine, vehicle_index: int, t_fail_s: float) -> None:
-    """Make one vehicle's dynamics end the flight once they step past t_fail_s (before the
-    fork: whichever process steps that vehicle inherits it)."""
+    """Make one vehicle's dynamics end the flight once they step past t_fail_s (set before the
+    fork, so that a worker process has it too)."""
     v = engine.vehicles[vehicle_index]
     advance = v.dynamics.advance
     state = {"t_s": 0.0}
