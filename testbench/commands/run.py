@@ -22,8 +22,9 @@ def register(subparsers) -> None:
     p.add_argument("--save-frames", type=int, metavar="N", default=0, help="save every Nth camera frame as PNG under OUT/frames")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--processes", type=int, default=1, metavar="N",
-                   help="run the vehicles' sensors, navigation and control in N worker processes (a swarm on "
-                        "several cores; the same record as one process; Linux, not with --save-frames)")
+                   help="run the vehicles' sensors, navigation and control in N processes, this one and N - 1 "
+                        "forked workers (a swarm on several cores; the same record as one process; Linux, not with "
+                        "--save-frames)")
     p.add_argument("--check", action="store_true",
                    help="only check the scenario: build every vehicle, open every map, set the initial state, "
                         "print the resolved scenario (YAML) and exit 0 (2 on bad input) without flying or writing")

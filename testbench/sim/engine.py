@@ -81,7 +81,8 @@ class Engine:
     on_progress(t_s) is called about once per simulated second; realtime paces the loop to
     the wall clock (max lag reported); frame_sink(vehicle_id, sensor_name, frame) receives
     every camera-like measurement (for --save-frames); processes > 1 runs the vehicles' own
-    stacks in that many worker processes (sim/parallel.py; not with a frame sink).
+    stacks in that many processes, this one and processes - 1 forked workers (sim/parallel.py;
+    not with a frame sink).
     """
 
     def __init__(

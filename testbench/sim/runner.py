@@ -63,7 +63,7 @@ def build_engine(
     processes: int = 1,
 ) -> tuple[Engine, RunWorld, Recorder]:
     """Assemble the world, the vehicles and the engine of a scenario (no I/O of outputs);
-    processes: worker processes for the vehicles' stacks (Engine)."""
+    processes: how many processes fly the vehicles' stacks, this one included (Engine)."""
     scn = loaded.scenario
     streams = RngStreams(scn.seed if seed is None else seed)
     world = RunWorld(scn.world, origin_of(loaded))
