@@ -82,10 +82,28 @@ class Wind(pydantic.BaseModel):
         return (self.speed_mps * math.cos(to_rad), self.speed_mps * math.sin(to_rad), 0.0)
 
 
+class MagneticAnomaly(pydantic.BaseModel):
+    """The crust's field over the Earth's main field (world/magnetic.py): what a magnetometer
+    senses beyond the WMM that the vehicles carry. A seeded random potential field of sources
+    at source_depth_m below the origin's altitude (correlation length about twice that),
+    whose vertical anomaly and horizontal anomaly magnitude have RMS rms_nT at the origin's
+    altitude and rms_nT / (1 + h / source_depth_m) at a height h above it.
+
+    seed: the field's own seed (the same field in every run); None draws it from the run's
+    seed, so each run of a Monte Carlo batch meets another field. waves: plane waves summed."""
+
+    model_config = _CFG
+    rms_nT: float = Field(ge=0.0, le=100_000.0)
+    source_depth_m: float = Field(gt=0.0, le=100_000.0)
+    seed: int | None = Field(default=None, ge=0)
+    waves: int = Field(default=256, ge=16, le=4096)
+
+
 class World(pydantic.BaseModel):
     """The world: origin, what cameras render (imagery), what vehicles carry (reference_map),
-    terrain (elevation), the air mass (wind; None: calm air). Maps are GeoTIFF paths (with
-    ${VAR} expansion) or `procedural:` specs; None means no imagery / flat ground."""
+    terrain (elevation), the air mass (wind; None: calm air), the crust's magnetic anomaly
+    (None: the magnetometers sense the WMM the vehicles carry, exactly). Maps are GeoTIFF
+    paths (with ${VAR} expansion) or `procedural:` specs; None means no imagery / flat ground."""
 
     model_config = _CFG
     origin: Origin
@@ -95,6 +113,7 @@ class World(pydantic.BaseModel):
     reference_elevation: str | None = None
     obstacles: list[dict[str, Any]] = Field(default_factory=list)
     wind: Wind | None = None
+    magnetic_anomaly: MagneticAnomaly | None = None
 
 
 class InitialState(pydantic.BaseModel):

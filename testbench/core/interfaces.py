@@ -59,6 +59,11 @@ class WorldView(Protocol):
         """Terrain height above the origin's altitude (up positive, m) at NED north/east."""
         ...
 
+    def magnetic_anomaly_ned_T(self, truth: TruthState) -> np.ndarray | None:
+        """The crust's magnetic field over the WMM at the vehicle (3,) NED tesla, or None
+        where the world has none (the WMM alone)."""
+        ...
+
 
 class Dynamics(abc.ABC):
     """Flight dynamics of one vehicle."""

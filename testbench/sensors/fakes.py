@@ -60,6 +60,10 @@ class FakeWorld:
     origin: GeodeticOrigin = ORIGIN
     terrain: Callable[[Any, Any], Any] = flat_terrain
     obstacles: tuple = ()
+    magnetic_anomaly: Callable[[TruthState], Any] | None = None  # truth -> (3,) NED tesla
 
     def terrain_height_m(self, north_m, east_m):
         return self.terrain(north_m, east_m)
+
+    def magnetic_anomaly_ned_T(self, truth):
+        return None if self.magnetic_anomaly is None else self.magnetic_anomaly(truth)

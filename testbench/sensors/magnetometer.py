@@ -1,44 +1,26 @@
-"""3-axis magnetometer: World Magnetic Model field at the vehicle, rotated into body axes,
+"""3-axis magnetometer: the world's magnetic field at the vehicle, rotated into body axes,
 with hard-iron offset, soft-iron matrix, white noise and quantisation.
 
     B_b = S (R_nb^T B_ned) + h + n,   n ~ N(0, sigma^2 I)   (tesla)
 
-B_ned = (X north, Y east, Z down) from pygeomag's WMM (coefficients chosen by the scenario
-epoch) at the truth latitude, longitude and altitude. The WMM varies by a few nT per km, so
-it is re-evaluated only after the vehicle has moved `field_update_distance_m`.
+B_ned = (X north, Y east, Z down) is the world's field (world/magnetic.py): pygeomag's WMM
+(coefficients chosen by the scenario epoch) at the truth latitude, longitude and altitude, plus
+the crust's anomaly where the scenario gives one (`world.magnetic_anomaly`). The WMM varies by
+a few nT per km, so it is re-evaluated only after the vehicle has moved
+`field_update_distance_m`; the anomaly, which varies over hundreds of metres, at every sample.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from pydantic import Field
-from pygeomag import GeoMag
 
 from testbench.core.interfaces import BuildContext, WorldView
 from testbench.core.messages import MagSample, TruthState
 from testbench.core.registry import ParamsModel, register
 from testbench.core.rotations import quat_to_dcm
 from testbench.sensors.base import CachedSensor, check_rate
-
-NT_TO_T = 1e-9
-
-
-def wmm_field_ned_nT(lat_deg: float, lon_deg: float, alt_m: float, year: float) -> np.ndarray:
-    """WMM main field (X north, Y east, Z down) in nT at a geodetic point and decimal year."""
-    gm = _geomag_for(year)
-    lon = (lon_deg + 180.0) % 360.0 - 180.0
-    r = gm.calculate(glat=lat_deg, glon=lon, alt=alt_m / 1000.0, time=year, allow_date_outside_lifespan=True)
-    return np.array([r.x, r.y, r.z])
-
-
-_GEOMAG: dict[int, GeoMag] = {}
-
-
-def _geomag_for(year: float) -> GeoMag:
-    base = 2025 if year >= 2025 else 2020 if year >= 2020 else 2015
-    if base not in _GEOMAG:
-        _GEOMAG[base] = GeoMag(base_year=base)
-    return _GEOMAG[base]
+from testbench.world.magnetic import NT_TO_T, wmm_field_ned_nT
 
 
 class MagnetometerParams(ParamsModel):
@@ -76,7 +58,7 @@ class Magnetometer(CachedSensor):
         self._field_at_ned_m = np.zeros(3)
 
     def field_ned_T(self, truth: TruthState) -> np.ndarray:
-        """WMM field at the truth position (tesla, NED), cached over short moves."""
+        """WMM main field at the truth position (tesla, NED), cached over short moves."""
         pos = np.asarray(truth.pos_ned_m, float)
         if self._field_ned_T is None or np.linalg.norm(pos - self._field_at_ned_m) > self.params.field_update_distance_m:
             b = wmm_field_ned_nT(np.rad2deg(truth.lat_rad), np.rad2deg(truth.lon_rad), truth.alt_m, self.year)
@@ -85,7 +67,11 @@ class Magnetometer(CachedSensor):
         return self._field_ned_T
 
     def _sample(self, truth: TruthState, world: WorldView, rng: np.random.Generator) -> MagSample:
-        b_b = quat_to_dcm(truth.q_nb_wxyz).T @ self.field_ned_T(truth)  # NED -> body: R_bn = R_nb^T
+        b_ned = self.field_ned_T(truth)
+        anomaly = world.magnetic_anomaly_ned_T(truth)
+        if anomaly is not None:
+            b_ned = b_ned + anomaly
+        b_b = quat_to_dcm(truth.q_nb_wxyz).T @ b_ned  # NED -> body: R_bn = R_nb^T
         b = self.soft_iron @ b_b + self.hard_iron_T + self.params.noise_nT * NT_TO_T * rng.standard_normal(3)
         if self.params.lsb_nT > 0:
             lsb = self.params.lsb_nT * NT_TO_T

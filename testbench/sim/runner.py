@@ -66,7 +66,7 @@ def build_engine(
     processes: how many processes fly the vehicles' stacks, this one included (Engine)."""
     scn = loaded.scenario
     streams = RngStreams(scn.seed if seed is None else seed)
-    world = RunWorld(scn.world, origin_of(loaded))
+    world = RunWorld(scn.world, origin_of(loaded), streams=streams)
     vehicles = [build_vehicle(scn, v, world, streams, str(loaded.directory)) for v in scn.vehicles]
     from testbench.sim.appearance import default_look
 

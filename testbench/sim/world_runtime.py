@@ -1,7 +1,8 @@
 """The truth world of one run (maps, terrain, obstacles) and the per-tick views sensors get.
 
 `RunWorld` opens what the scenario's `world:` names: `imagery` (what cameras render),
-`elevation` (terrain relief, flat when absent), and, for the vehicles' onboard use,
+`elevation` (terrain relief, flat when absent), `magnetic_anomaly` (the crust's field over the
+WMM, which magnetometers sense), and, for the vehicles' onboard use,
 `reference_map` / `reference_elevation` (what a vehicle carries: handed to navigation aids,
 never the truth imagery unless the scenario says so, in which case the run is labelled
 same-raster).
@@ -20,6 +21,8 @@ import numpy as np
 from testbench.config.schema import World
 from testbench.core.interfaces import GeodeticOrigin
 from testbench.core.messages import TruthState
+from testbench.core.rng import RngStreams
+from testbench.world.magnetic import NT_TO_T, CrustalAnomaly
 
 log = logging.getLogger(__name__)
 
@@ -33,10 +36,15 @@ def default_cache_dir() -> Path:
 class RunWorld:
     """Maps and terrain of a run, opened lazily (a run without cameras never reads imagery)."""
 
-    def __init__(self, world: World, origin: GeodeticOrigin, cache_dir: Path | None = None):
+    def __init__(self, world: World, origin: GeodeticOrigin, cache_dir: Path | None = None,
+                 streams: RngStreams | None = None):
+        """streams: the run's random streams, which draw what the world draws per run (its
+        magnetic anomaly when the scenario gives that no seed of its own)."""
         self.spec = world
         self.origin = origin
         self.cache_dir = cache_dir or default_cache_dir()
+        self._streams = streams
+        self._magnetic_anomaly: CrustalAnomaly | None = None
         self._imagery = None
         self._reference = None
         self._elevation = None
@@ -69,6 +77,20 @@ class RunWorld:
 
                 self._reference = open_world_imagery(spec, self.origin, self.cache_dir)
         return self._reference
+
+    def magnetic_anomaly(self) -> CrustalAnomaly | None:
+        """The crust's field over the WMM (None when the scenario gives none), drawn once."""
+        spec = self.spec.magnetic_anomaly
+        if spec is None or self._magnetic_anomaly is not None:
+            return self._magnetic_anomaly
+        if spec.seed is not None:
+            rng = RngStreams(spec.seed).generator("world", "magnetic_anomaly")
+        elif self._streams is not None:
+            rng = self._streams.generator("world", "magnetic_anomaly")
+        else:
+            raise ValueError("world.magnetic_anomaly has no seed and this RunWorld was given no run streams")
+        self._magnetic_anomaly = CrustalAnomaly(spec.rms_nT, spec.source_depth_m, rng, n_waves=spec.waves)
+        return self._magnetic_anomaly
 
     def elevation(self):
         """Truth terrain model, or None for flat ground at the origin altitude."""
@@ -224,6 +246,14 @@ class TickWorldView:
 
     def terrain_height_m(self, north_m, east_m):
         return self.world.terrain_height_m(north_m, east_m)
+
+    def magnetic_anomaly_ned_T(self, truth: TruthState) -> np.ndarray | None:
+        """The crust's field (3,) NED tesla at the vehicle, or None where the world has none."""
+        anomaly = self.world.magnetic_anomaly()
+        if anomaly is None:
+            return None
+        n_m, e_m, d_m = truth.pos_ned_m
+        return anomaly.field_ned_nT(n_m, e_m, -d_m) * NT_TO_T
 
     def imagery_for(self, bounds_ne_m, gsd_m: float):
         return self.world.imagery_for(bounds_ne_m, gsd_m)

@@ -49,6 +49,8 @@ def test_unknown_key_names_its_path(tmp_path):
         ("duration_s=abc", r"duration_s: Input should be a valid number.*'abc'"),
         ("vehicles.uav0.initial.altitude_m=800ft", r"altitude_m: .*plain number in metres"),
         ("physics_rate_hz=-5", r"physics_rate_hz: Input should be greater than 0"),
+        ("world.magnetic_anomaly={rms_nT: -5, source_depth_m: 1000}",
+         r"world\.magnetic_anomaly\.rms_nT: Input should be greater than or equal to 0"),
     ],
 )
 def test_wrong_type_or_unit_names_key_and_expected(tmp_path, override, pattern):
