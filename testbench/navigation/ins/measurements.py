@@ -116,9 +116,17 @@ def mag_vector(ekf, field_b_T, field_ned_T, sigma_T: float):
     """
     C = ekf.C_nb
     B_n = np.asarray(field_ned_T, float)
-    y = np.asarray(field_b_T, float) - C.T @ B_n
     H = np.zeros((3, ekf.n))
     H[:, IA] = C.T @ skew(B_n)
+    if ekf.i_mag is not None:
+        # A heading bias b (mag_heading: heading = true + b) is the sensed field turned by -b
+        # about down: B = Rz(-b) B_n, dB/db = -(e_D x B) = (B_E, -B_N, 0).
+        b = ekf.b_mag_rad
+        c, s = math.cos(b), math.sin(b)
+        B_n = np.array([c * B_n[0] + s * B_n[1], -s * B_n[0] + c * B_n[1], B_n[2]])
+        H[:, IA] = C.T @ skew(B_n)
+        H[:, ekf.i_mag] = C.T @ np.array([B_n[1], -B_n[0], 0.0])
+    y = np.asarray(field_b_T, float) - C.T @ B_n
     return y, H, np.eye(3) * sigma_T**2
 
 
@@ -151,6 +159,10 @@ def mag_heading(ekf, field_b_T, field_ned_T, sigma_rad: float):
     dh = Rz_T @ skew(B_n)  # d h / d phi (3, 3)
     H = np.zeros((1, ekf.n))
     H[0, IA] = -(h0[0] * dh[1] - h0[1] * dh[0]) / (h0[0] ** 2 + h0[1] ** 2)
+    if ekf.i_mag is not None:
+        # The magnetic heading is the true one plus the bias (ErrorStateEKF mag_bias_*).
+        y[0] = wrap_pi(y[0] - ekf.b_mag_rad)
+        H[0, ekf.i_mag] = 1.0
     return y, H, np.array([[sigma_rad**2]])
 
 

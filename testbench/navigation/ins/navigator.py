@@ -95,6 +95,8 @@ class InsEkfNavigator(Navigator):
             wind_states=wind_settings(params) is not None,
             wind_rw_mps_sqrt_s=0.0 if wind_settings(params) is None else wind_settings(params).wind_rw_mps_sqrt_s,
             appearance_sigma_m=params.fix_appearance_sigma_m,
+            mag_bias_sigma_rad=0.0 if params.mag_bias is None else params.mag_bias.sigma_deg * DEG_TO_RAD,
+            mag_bias_correlation_m=math.inf if params.mag_bias is None else params.mag_bias.correlation_m,
         )
         self._mag_model: OnboardMagneticModel | None = None
         self._airspeed: float | None = None
@@ -144,8 +146,9 @@ class InsEkfNavigator(Navigator):
         return dx
 
     def initial_covariance(self) -> np.ndarray:
-        """P0 (ekf.n, ekf.n) from Params.initial_sigma (GNSS and fix error states and the drag scale:
-        their steady state; the wind, with wind states: their aiding's wind_sigma_mps)."""
+        """P0 (ekf.n, ekf.n) from Params.initial_sigma (GNSS and fix error states, the drag scale
+        and the magnetic bias: their steady state; the wind, with wind states: their aiding's
+        wind_sigma_mps)."""
         s = self.params.initial_sigma
         d = np.empty(self.ekf.n)
         d[IP] = s.pos_m
@@ -165,6 +168,8 @@ class InsEkfNavigator(Navigator):
             d[IW] = wind_settings(self.params).wind_sigma_mps
         if self.ekf.i_app is not None:
             d[self.ekf.i_app] = self.params.fix_appearance_sigma_m
+        if self.ekf.i_mag is not None:
+            d[self.ekf.i_mag] = self.params.mag_bias.sigma_deg * DEG_TO_RAD
         return np.diag(d**2)
 
     def appearance_gain(self, quality: float) -> float:

@@ -147,6 +147,24 @@ class AirspeedAiding(ParamsModel):
     """Below this (on the ground, in the take-off run) nothing is fused."""
 
 
+class MagBias(ParamsModel):
+    """The magnetic heading's bias as a filter state (ErrorStateEKF.i_mag): the field the
+    magnetometer senses differs from the onboard WMM by the crust's anomaly (world.
+    magnetic_anomaly), which turns the magnetic heading by about the horizontal anomaly across
+    the horizontal field (100 nT against 17 000 nT: 6 mrad, 0.34 deg), alike for every sample
+    over a region. The WMM's own declination uncertainty, mostly that, is 0.3-0.5 deg (1
+    sigma). While another source fixes the heading (GNSS velocity in manoeuvres, the scene
+    matcher's image heading) the filter learns the bias; after, it keeps it as long as the
+    anomaly lasts along the flight.
+
+    sigma_deg: steady-state sigma of the bias; correlation_m: the ground distance over which
+    it decorrelates (a Gauss-Markov process in distance: the anomaly's correlation length,
+    about twice its sources' depth)."""
+
+    sigma_deg: float = pydantic.Field(0.3, gt=0.0, le=20.0)
+    correlation_m: float = pydantic.Field(2000.0, gt=0.0)
+
+
 class MeasurementSigmas(ParamsModel):
     """Measurement noise overrides; None uses the message's own figure or the default."""
 
@@ -244,6 +262,9 @@ class InsEkfParams(ParamsModel):
     fix_appearance_max_gain: float = pydantic.Field(3.0, gt=0.0)
     """Cap on g: a fix of very low quality is mostly gated out, and one that passes must not
     pin the appearance states with a gain of 10."""
+    mag_bias: MagBias | None = None
+    """The magnetic heading's bias as a filter state (see MagBias); None: none, every
+    magnetometer sample's error taken as white."""
     fix_reset_after_s: float = pydantic.Field(5.0, ge=0.0)
     """Position fixes that keep arriving and keep failing the gate for this long (s) mean
     the filter, not the fixes, has lost the position (a streak of biased fixes it accepted

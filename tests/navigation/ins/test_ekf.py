@@ -196,6 +196,38 @@ def test_a_fix_heading_corrects_the_yaw_only_with_an_accepted_fix():
     assert abs(math.degrees(off.estimate().rpy_rad[2] - yaw0)) < 1e-6
 
 
+def test_the_magnetic_bias_state_learns_the_anomaly_and_keeps_the_heading():
+    """A magnetometer whose heading errs by a constant 6 mrad (the crust's field, which the
+    onboard WMM lacks), and for the first 10 s the image's exact heading beside it. With the
+    bias state the filter learns the offset and its yaw stays true through 60 s of the
+    magnetometer alone; taken as white, the magnetometer's samples pull the yaw onto its bias."""
+    bias_rad = 0.006
+    true_ned = geodesy.geodetic_to_ned(LAT0, LON0, H0, ORIGIN.lat_rad, ORIGIN.lon_rad, ORIGIN.alt_m)
+    B_n = OnboardMagneticModel(2025.5).field_ned_T(LAT0, LON0, H0)
+    c, s = math.cos(bias_rad), math.sin(bias_rad)
+    sensed_b = np.array([c * B_n[0] + s * B_n[1], -s * B_n[0] + c * B_n[1], B_n[2]])  # yaw 0, level
+    q = np.array([1.0, 0, 0, 0])
+    w, f = static_imu(LAT0, H0, q)
+    yaw_mrad = {}
+    for bias_state in (None, {"sigma_deg": 0.5, "correlation_m": 2000.0}):
+        nav = _navigator(use_mag=True, mag_bias=bias_state)
+        nav.initialize(0.0, _estimate_from(LAT0, LON0, H0, np.zeros(3), q))
+        for k in range(1, 1401):
+            t = k * 0.05
+            nav.predict(ImuSample(t, w, f))
+            nav.correct(MagSample(t, sensed_b))
+            if k % 20 == 0:
+                nav.correct(GnssFix(t, LAT0, LON0, H0, np.zeros(3), np.full(3, 2.0), np.full(3, 0.1)))
+            if k % 20 == 10 and t < 10.0:
+                nav.correct(PositionFix(t, true_ned, np.diag([25.0, 25.0, 100.0]), 0.9,
+                                        heading_rad=0.0, heading_sigma_rad=math.radians(0.01)))
+        yaw_mrad[bias_state is not None] = 1e3 * nav.estimate().rpy_rad[2]
+        if bias_state is not None:
+            assert nav.ekf.b_mag_rad == pytest.approx(bias_rad, abs=0.0005)
+    assert abs(yaw_mrad[True]) < 0.5
+    assert yaw_mrad[False] > 2.5  # pulled over 40 % of the way onto the 6 mrad bias (3.4 mrad at 70 s)
+
+
 def test_fixes_rejected_past_the_timeout_reset_the_position():
     """A filter confidently 200 m off (fixes rejected) re-acquires after fix_reset_after_s of
     rejections: the next fix resets the position to it; with the reset off it never does."""

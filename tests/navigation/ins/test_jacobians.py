@@ -146,6 +146,24 @@ def test_H_matches_finite_differences(name, model):
     np.testing.assert_allclose(H, H_num, rtol=1e-5, atol=3e-6 * scale, err_msg=name)
 
 
+@pytest.mark.parametrize("name", ["mag_vector", "mag_heading"])
+def test_mag_H_with_the_heading_bias_state_matches_finite_differences(name):
+    """With the magnetic bias state (one more column, last) at a non-zero estimate."""
+    noise = imu_noise_from_datasheet(0.15, 7.0, 0.02, 14.0)
+    ekf = ErrorStateEKF(noise, wind_states=True, mag_bias_sigma_rad=0.005, mag_bias_correlation_m=2000.0)
+    lat, lon, h, v, q = X_HAT
+    ekf.initialize(0.0, lat, lon, h, v, q, np.eye(ekf.n))
+    ekf.b_mag_rad = 0.01
+    assert ekf.n == N_STATES + 1 and ekf.i_mag == N_STATES
+    field_b_T = quat_to_dcm(X_HAT[4]).T @ B_NED
+    model = {"mag_vector": lambda e: meas.mag_vector(e, field_b_T + np.array([1e-7, -2e-7, 1e-7]), B_NED, 1e-7),
+             "mag_heading": lambda e: meas.mag_heading(e, field_b_T, B_NED, 0.01)}[name]
+    H = model(ekf)[1]
+    assert abs(H[0, ekf.i_mag]) > 0.1 * np.abs(H).max()  # the bias column is there
+    H_num = _numeric_H(ekf, model, np.r_[STEPS, 1e-5])
+    np.testing.assert_allclose(H, H_num, rtol=1e-5, atol=3e-6 * np.abs(H).max(), err_msg=name)
+
+
 def test_calm_air_drag_H_matches_finite_differences():
     """Rotor drag without wind states (calm air): the ground velocity is the air velocity."""
     noise = imu_noise_from_datasheet(0.15, 7.0, 0.02, 14.0)
