@@ -73,6 +73,11 @@ def _config_table(record: RunRecord) -> Table:
         turb = wind.get("turbulence")
         rows.append(["wind", f"{fmt(wind.get('speed_mps'))} m/s from {fmt(wind.get('from_deg'))}°" + (
             f", {turb.get('severity')} turbulence ({turb.get('model')})" if isinstance(turb, dict) else ", no turbulence")])
+    anomaly = (info.get("world") or {}).get("magnetic_anomaly")
+    if isinstance(anomaly, dict):
+        field = "the run's own draw" if anomaly.get("seed") is None else f"field seed {anomaly['seed']}"
+        rows.append(["magnetic anomaly", f"{fmt(anomaly.get('rms_nT'))} nT RMS at the origin's altitude, sources "
+                                         f"{fmt(anomaly.get('source_depth_m'))} m deep ({field})"])
     ph = record.phases
     rows.append(["turning phase", f"|bank| > {ph['turn_bank_deg']:g}° or |turn rate| > {ph['turn_rate_deg_s']:g}°/s"])
     if "same_raster" in info:
