@@ -11,7 +11,7 @@ import pandas as pd
 
 from testbench.scoring.metrics_nav import MIN_AGL_FOR_PCT_M
 from testbench.scoring.phases import event_turning
-from testbench.scoring.record_io import RunRecord, column
+from testbench.scoring.record_io import RunRecord, column, has_columns
 from testbench.scoring.result import (
     FormationMetrics,
     IsmnMetrics,
@@ -82,6 +82,35 @@ def relnav_errors_m(rel: pd.DataFrame) -> np.ndarray:
     )
 
 
+def own_heading_error_rad(record: RunRecord, rel: pd.DataFrame) -> np.ndarray:
+    """The observer's own heading error (estimated - true yaw, rad, wrapped) at each relnav
+    row's time, interpolated in that vehicle's telemetry; shape (n,), nan where the telemetry
+    has no yaw to compare."""
+    out = np.full(len(rel), np.nan)
+    observer = rel["vehicle_id"].astype(str).to_numpy()
+    t_s = column(rel, "t_s")
+    for vid in np.unique(observer):
+        tel = record.vehicle_telemetry(vid)
+        if not has_columns(tel, "t_s", "nav_yaw_rad", "truth_yaw_rad"):
+            continue
+        err = np.angle(np.exp(1j * (column(tel, "nav_yaw_rad") - column(tel, "truth_yaw_rad"))))
+        sel = observer == vid
+        # The error is a few mrad, far from the wrap, so a linear interpolation is exact enough.
+        out[sel] = np.interp(t_s[sel], column(tel, "t_s"), err)
+    return out
+
+
+def relnav_errors_less_own_heading_m(rel: pd.DataFrame, heading_error_rad: np.ndarray) -> np.ndarray:
+    """|Rz(-d psi) est - truth| (m) per row, shape (n,): the estimate turned back about down by
+    the observer's own heading error d psi (n,). An observer rotates its bearings into NED with
+    its own estimated attitude, so its heading error turns every estimate about it by d psi;
+    this is the error of the relative sensing and filtering alone."""
+    c, s = np.cos(heading_error_rad), np.sin(heading_error_rad)
+    n, e = column(rel, "est_north_m"), column(rel, "est_east_m")
+    return np.sqrt((c * n + s * e - column(rel, "truth_north_m")) ** 2 + (-s * n + c * e - column(rel, "truth_east_m")) ** 2
+                   + (column(rel, "est_down_m") - column(rel, "truth_down_m")) ** 2)
+
+
 RELNAV_RANGE_EDGES_M = (60.0, 120.0, 180.0, 240.0)
 """Edges (m) of relnav.by_range: a swarm's rings of neighbours fall in separate bins at the
 usual spacings (the paper's arrowhead: 100 m neighbours, the 173 m second ring, 200 m along a
@@ -139,6 +168,7 @@ def compute_relnav(record: RunRecord) -> RelnavMetrics | None:
         return None
     ids = record.event("relnav_id")  # one row per identified track per frame
     err = relnav_errors_m(rel)
+    err_less_heading = relnav_errors_less_own_heading_m(rel, own_heading_error_rad(record, rel))
     sigma = column(rel, "sigma_m")
     ok_sig = np.isfinite(sigma) & np.isfinite(err)
     within = float(np.mean(err[ok_sig] <= 3.0 * sigma[ok_sig])) if ok_sig.any() else None
@@ -156,6 +186,7 @@ def compute_relnav(record: RunRecord) -> RelnavMetrics | None:
             by_range[key] = _relnav_group(rel, err, sel)
     return RelnavMetrics(
         error_m=error_stats(err),
+        error_less_own_heading_m=error_stats(err_less_heading),
         id_correct_rate=_id_rate(rel),
         id_ambiguous_rate=_ambiguous_rate(rel),
         track_id_correct_rate=None if ids is None else _id_rate(ids),

@@ -188,6 +188,10 @@ class RelnavPair(_Section):
 class RelnavMetrics(_Section):
     """Relative navigation: |estimated - true relative position| (m), 3D.
 
+    error_less_own_heading_m: the same with each estimate turned back about down by its
+    observer's own heading error at that time (metrics_events.relnav_errors_less_own_heading_m):
+    what the relative sensing and filtering err by, apart from the observer's heading, which a
+    field bias common to the swarm (a magnetic anomaly) sets for every vehicle alike;
     id_correct_rate: fraction of estimates whose last bearing came from that peer, among those
     whose detection imaged one vehicle (the truth can decide);
     id_ambiguous_rate: fraction of the checked estimates whose last bearing's detection imaged
@@ -207,6 +211,7 @@ class RelnavMetrics(_Section):
     """
 
     error_m: ErrorStats | None = None
+    error_less_own_heading_m: ErrorStats | None = None
     id_correct_rate: float | None = None
     id_ambiguous_rate: float | None = None
     track_id_correct_rate: float | None = None

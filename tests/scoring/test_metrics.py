@@ -261,6 +261,31 @@ def test_relnav_by_range_bins_the_rows_by_their_true_range():
     assert flat["relnav.by_range.60_120m.error_m.mean"] == pytest.approx(0.3)
 
 
+def test_relnav_error_less_own_heading_takes_out_the_observers_heading_error():
+    """An observer whose heading errs by d psi turns its estimates about itself by d psi:
+    relnav.error_m counts that, error_less_own_heading_m does not (nor what is left)."""
+    d_psi_rad = np.linspace(0.002, 0.004, 20)  # the observer's heading error, drifting
+    tel = straight_telemetry(n=20, vehicle_id="a", nav_yaw_rad=d_psi_rad)  # truth yaw 0
+    t_s = np.array([0.35, 1.0, 1.55])
+    d_psi = np.interp(t_s, tel["t_s"], d_psi_rad)
+    truth_ne = np.array([[100.0, 0.0], [0.0, 173.0], [-60.0, 80.0]])
+    c, s = np.cos(d_psi), np.sin(d_psi)
+    est_n = c * truth_ne[:, 0] - s * truth_ne[:, 1]
+    est_e = s * truth_ne[:, 0] + c * truth_ne[:, 1]
+    rel = pd.DataFrame({"t_s": t_s, "vehicle_id": ["a"] * 3, "peer_id": ["b", "c", "d"],
+                        "est_north_m": est_n, "est_east_m": est_e + np.array([0.0, 0.0, 0.5]),
+                        "est_down_m": [0.0] * 3, "truth_north_m": truth_ne[:, 0], "truth_east_m": truth_ne[:, 1],
+                        "truth_down_m": [0.0] * 3, "sigma_m": [1.0] * 3})
+    m = score_record(record_of(tel, {"relnav": rel}, vehicles=[{"id": "a"}]), metrics=[]).relnav
+    heading_part_m = np.hypot(*truth_ne.T) * d_psi  # 2-4 mrad at 100-173 m
+    assert m.error_m.max == pytest.approx(heading_part_m[1], rel=1e-4) and m.error_m.max > 0.5
+    less = m.error_less_own_heading_m
+    assert less.n == 3 and less.max == pytest.approx(0.5, abs=1e-9)  # what the heading does not explain
+    assert less.mean == pytest.approx(0.5 / 3, abs=1e-9)  # the other two rows: 0
+    no_yaw = straight_telemetry(n=20, vehicle_id="a")  # no estimated yaw recorded: nothing to take out
+    assert score_record(record_of(no_yaw, {"relnav": rel}), metrics=[]).relnav.error_less_own_heading_m is None
+
+
 def test_relnav_ambiguous_rate_counts_the_undecidable_rows():
     """Rows whose last bearing imaged several vehicles alike (id_ambiguous 1, id_correct nan)
     are left out of id_correct_rate and counted in id_ambiguous_rate; rows with no check at all
