@@ -83,9 +83,9 @@ def relnav_errors_m(rel: pd.DataFrame) -> np.ndarray:
 
 
 def own_heading_error_rad(record: RunRecord, rel: pd.DataFrame) -> np.ndarray:
-    """The observer's own heading error (estimated - true yaw, rad, wrapped) at each relnav
-    row's time, interpolated in that vehicle's telemetry; shape (n,), nan where the telemetry
-    has no yaw to compare."""
+    """The observer's own heading error (estimated - true yaw, rad) at each relnav row's time,
+    interpolated in that vehicle's telemetry; shape (n,), nan where the telemetry has no yaw to
+    compare. Only its cosine and sine are used, so it need not be wrapped."""
     out = np.full(len(rel), np.nan)
     observer = rel["vehicle_id"].astype(str).to_numpy()
     t_s = column(rel, "t_s")
@@ -93,9 +93,9 @@ def own_heading_error_rad(record: RunRecord, rel: pd.DataFrame) -> np.ndarray:
         tel = record.vehicle_telemetry(vid)
         if not has_columns(tel, "t_s", "nav_yaw_rad", "truth_yaw_rad"):
             continue
-        err = np.angle(np.exp(1j * (column(tel, "nav_yaw_rad") - column(tel, "truth_yaw_rad"))))
+        # Unwrapped, so that an error passing +-pi (a lost heading) interpolates across it.
+        err = np.unwrap(np.angle(np.exp(1j * (column(tel, "nav_yaw_rad") - column(tel, "truth_yaw_rad")))))
         sel = observer == vid
-        # The error is a few mrad, far from the wrap, so a linear interpolation is exact enough.
         out[sel] = np.interp(t_s[sel], column(tel, "t_s"), err)
     return out
 
