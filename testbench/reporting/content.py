@@ -30,7 +30,7 @@ KEY_METRICS = (
     "ismn.fix_rate", "ismn.accept_rate", "ismn.latency_ms.mean", "ismn.latency_ms.p95",
     "ismn.all.horizontal_error_m.mean", "ismn.smooth.horizontal_error_m.mean", "ismn.turning.horizontal_error_m.mean",
     "ismn.all.horizontal_error_pct_agl.mean",
-    "relnav.error_m.mean", "relnav.error_m.max", "relnav.id_correct_rate", "relnav.id_ambiguous_rate", "relnav.track_id_correct_rate", "formation.error_m.rms", "formation.error_m.max",
+    "relnav.error_m.mean", "relnav.error_m.max", "relnav.error_less_own_heading_m.mean", "relnav.id_correct_rate", "relnav.id_ambiguous_rate", "relnav.track_id_correct_rate", "formation.error_m.rms", "formation.error_m.max",
     "real_time_factor", "sim_time_s", "wall_time_s",
 )
 

@@ -1,5 +1,7 @@
 import argparse
+import json
 import re
+from html import unescape
 
 import numpy as np
 import pytest
@@ -57,9 +59,6 @@ def test_sections_without_data_are_omitted(tmp_path):
 
 def test_configuration_names_the_wind_and_the_magnetic_anomaly(tmp_path):
     """What the world adds to the truth (run.json's world) is in the configuration table."""
-    import json
-    from html import unescape
-
     d = make_synthetic_run(tmp_path, np.random.default_rng(1), n_vehicles=1, duration_s=10.0, rate_hz=5.0,
                            with_events=False, with_images=False)
     info = json.loads((d / "run.json").read_text())
