@@ -80,7 +80,7 @@ def _config_table(record: RunRecord) -> Table:
                                          f"{fmt(anomaly.get('source_depth_m'))} m deep ({field})"])
     ph = record.phases
     rows.append(["turning phase", f"|bank| > {ph['turn_bank_deg']:g}° or |turn rate| > {ph['turn_rate_deg_s']:g}°/s"])
-    if "same_raster" in info:
+    if "same_raster" in info and record.event("ismn") is not None:
         rows.append(["camera raster = matcher raster", fmt(info.get("same_raster"))])
     origin = info.get("origin")
     if isinstance(origin, dict):
@@ -169,7 +169,10 @@ def build_report(run_dir: str | Path, result: MetricsResult | None = None) -> Re
     info = record.run_info
     verdict = "ABORTED" if info.get("status", "completed") != "completed" else ("FAILED" if thr.failed else "PASSED")
     warnings = []
-    if info.get("same_raster"):
+    # Only where something matched scenes: a swarm's cameras render the imagery too, but no
+    # vehicle carries a map, and the warning would speak of figures the report does not have.
+    scene_matching = record.event("ismn") is not None
+    if info.get("same_raster") and scene_matching:
         warnings.append("The camera was rendered from the same raster the matcher uses: scene-matching figures are optimistic.")
     if info.get("abort_reason"):
         warnings.append(f"Run aborted: {info['abort_reason']}")

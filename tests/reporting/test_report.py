@@ -71,6 +71,21 @@ def test_configuration_names_the_wind_and_the_magnetic_anomaly(tmp_path):
     assert "8 m/s from 300°, no turbulence" in re.search(r"<tr><td>wind</td>.*?</tr>", html).group(0)
 
 
+def test_the_same_raster_warning_only_where_scenes_were_matched(tmp_path):
+    """A world whose imagery is also its reference map warns of optimistic scene-matching
+    figures, but only in a run that matched scenes (a swarm renders the imagery, matches nothing)."""
+    warning = "same raster the matcher uses"
+    for with_events in (True, False):
+        d = make_synthetic_run(tmp_path / str(with_events), np.random.default_rng(1), n_vehicles=1, duration_s=10.0,
+                               rate_hz=5.0, with_events=with_events, with_images=False)
+        info = json.loads((d / "run.json").read_text())
+        info["same_raster"] = True
+        (d / "run.json").write_text(json.dumps(info))
+        html = unescape(write_html_report(d).read_text())
+        assert (warning in html) == with_events
+        assert ("camera raster = matcher raster" in html) == with_events
+
+
 def test_pdf_has_every_figure(synthetic_run, tmp_path):
     out = write_pdf_report(synthetic_run, tmp_path / "r.pdf")
     data = out.read_bytes()
