@@ -273,29 +273,30 @@ class ErrorStateEKF(Reacquisition):
         if self._acc_yaw_rad > 0.0:
             # The view's turn: a Gauss-Markov step in heading, x <- a x + w, var(w) = (1 - a^2) s^2.
             a = math.exp(-self._acc_yaw_rad / self.fix_error_turn_rad)
-            self.P[IFX, :] *= a
-            self.P[:, IFX] *= a
-            self.P[IFX, IFX] += (1.0 - a * a) * np.diag(self._fix_var_m2)
+            self._gauss_markov_step(IFX, a, np.diag(self._fix_var_m2))
             self.b_fix *= a
             if ia is not None:
-                self.P[ia, :] *= a
-                self.P[:, ia] *= a
-                self.P[ia, ia] += (1.0 - a * a) * np.diag(self._app_var_m2)
+                self._gauss_markov_step(ia, a, np.diag(self._app_var_m2))
                 self.b_app *= a
-        im = self.i_mag
-        if im is not None:
-            # The bias decorrelates over the ground flown: x <- a x + w, var(w) = (1 - a^2) s^2.
+        if self.i_mag is not None:
+            # The magnetic bias decorrelates over the ground flown.
             vn, ve, _ = ins.vel
             a = math.exp(-math.hypot(vn, ve) * T / self.mag_bias_correlation_m)
-            self.P[im, :] *= a
-            self.P[:, im] *= a
-            self.P[im, im] += (1.0 - a * a) * self._mag_var_rad2
+            self._gauss_markov_step(self.i_mag, a, self._mag_var_rad2)
             self.b_mag_rad *= a
         self._acc_T = 0.0
         self._acc_fn = [0.0, 0.0, 0.0]
         self._acc_turn_rad = 0.0
         self._acc_yaw_rad = 0.0
         self._check("covariance propagation")
+
+    def _gauss_markov_step(self, idx, a: float, steady_cov) -> None:
+        """One Gauss-Markov step of the error states idx (a slice or an index) in P:
+        x <- a x + w, cov(w) = (1 - a^2) steady_cov (the states' steady-state covariance,
+        (k, k) for a slice, a variance for an index)."""
+        self.P[idx, :] *= a
+        self.P[:, idx] *= a
+        self.P[idx, idx] += (1.0 - a * a) * steady_cov
 
     # ---------------------------------------------------------------- updates
     def update(self, kind: str, t_s: float, y, H, R, gate: bool = True) -> CorrectionInfo:

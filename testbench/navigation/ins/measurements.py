@@ -117,15 +117,13 @@ def mag_vector(ekf, field_b_T, field_ned_T, sigma_T: float):
     C = ekf.C_nb
     B_n = np.asarray(field_ned_T, float)
     H = np.zeros((3, ekf.n))
-    H[:, IA] = C.T @ skew(B_n)
     if ekf.i_mag is not None:
         # A heading bias b (mag_heading: heading = true + b) is the sensed field turned by -b
         # about down: B = Rz(-b) B_n, dB/db = -(e_D x B) = (B_E, -B_N, 0).
-        b = ekf.b_mag_rad
-        c, s = math.cos(b), math.sin(b)
+        c, s = math.cos(ekf.b_mag_rad), math.sin(ekf.b_mag_rad)
         B_n = np.array([c * B_n[0] + s * B_n[1], -s * B_n[0] + c * B_n[1], B_n[2]])
-        H[:, IA] = C.T @ skew(B_n)
         H[:, ekf.i_mag] = C.T @ np.array([B_n[1], -B_n[0], 0.0])
+    H[:, IA] = C.T @ skew(B_n)
     y = np.asarray(field_b_T, float) - C.T @ B_n
     return y, H, np.eye(3) * sigma_T**2
 
