@@ -99,9 +99,31 @@ class MagneticAnomaly(pydantic.BaseModel):
     waves: int = Field(default=256, ge=16, le=4096)
 
 
+class ObstacleBox(pydantic.BaseModel):
+    """A box-shaped obstacle (building, tower, mast): axis-aligned in the local NED frame,
+    min_ned_m and max_ned_m its corners [north, east, down] in metres from the origin (down
+    from the origin's altitude: a 40 m building on ground at the origin's altitude runs from
+    down -40 to 0). It blocks UWB links (NLOS), is drawn by the cameras and hides what stands
+    behind it, and a vehicle that enters it ends the run (a collision). name: how messages
+    call it (default "obstacle N", N its place in the list from 1)."""
+
+    model_config = _CFG
+    name: str | None = None
+    min_ned_m: tuple[float, float, float]
+    max_ned_m: tuple[float, float, float]
+
+    @model_validator(mode="after")
+    def _min_below_max(self):
+        for axis, lo, hi in zip(("north", "east", "down"), self.min_ned_m, self.max_ned_m):
+            if not (math.isfinite(lo) and math.isfinite(hi)) or not lo < hi:
+                raise ValueError(f"min_ned_m must lie below max_ned_m on every axis; {axis}: {lo} is not below {hi} "
+                                 "(expected [north, east, down] of the box's two opposite corners, m)")
+        return self
+
+
 class World(pydantic.BaseModel):
     """The world: origin, what cameras render (imagery), what vehicles carry (reference_map),
-    terrain (elevation), the air mass (wind; None: calm air), the crust's magnetic anomaly
+    terrain (elevation), obstacles (boxes: ObstacleBox), the air mass (wind; None: calm air), the crust's magnetic anomaly
     (None: the magnetometers sense the WMM the vehicles carry, exactly). Maps are GeoTIFF
     paths (with ${VAR} expansion) or `procedural:` specs; None means no imagery / flat ground."""
 
@@ -111,7 +133,7 @@ class World(pydantic.BaseModel):
     reference_map: str | None = None
     elevation: str | None = None
     reference_elevation: str | None = None
-    obstacles: list[dict[str, Any]] = Field(default_factory=list)
+    obstacles: list[ObstacleBox] = Field(default_factory=list)
     wind: Wind | None = None
     magnetic_anomaly: MagneticAnomaly | None = None
 

@@ -14,31 +14,18 @@ Channel physics: `uwb_channel`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from pydantic import Field, model_validator
 
+from testbench.config.schema import ObstacleBox
 from testbench.core.errors import InputError
 from testbench.core.interfaces import BuildContext, WorldView
 from testbench.core.messages import TruthState, UwbRange
+from testbench.core.obstacles import Obstacle
 from testbench.core.registry import ParamsModel, register
 from testbench.core.rotations import quat_to_dcm
 from testbench.sensors.base import CachedSensor, check_rate
-from testbench.sensors.uwb_channel import ChannelSpec, measure_ranges, segment_below_terrain, segment_hits_box
-
-
-@dataclass(frozen=True)
-class Obstacle:
-    """An axis-aligned box in local NED (m): min and max corners, each (north, east, down)."""
-
-    min_ned_m: tuple[float, float, float]
-    max_ned_m: tuple[float, float, float]
-
-
-class ObstacleParams(ParamsModel):
-    min_ned_m: tuple[float, float, float]
-    max_ned_m: tuple[float, float, float]
+from testbench.sensors.uwb_channel import ChannelSpec, measure_ranges, segment_below_terrain
 
 
 class UwbParams(ParamsModel):
@@ -61,7 +48,7 @@ class UwbParams(ParamsModel):
     nlos_probability: float = Field(0.0, ge=0, le=1)
     terrain_step_m: float = Field(10.0, gt=0)
     lever_arm_b_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    obstacles: list[ObstacleParams] = []
+    obstacles: list[ObstacleBox] = []  # the radio's own, beside world.obstacles
 
     @model_validator(mode="after")
     def _rate_matches_slot(self):
@@ -102,7 +89,8 @@ class Uwb(CachedSensor):
         self.self_id = ctx.vehicle_id
         self.spec = params.channel()
         self.lever = np.asarray(params.lever_arm_b_m, float)
-        self.obstacles = [Obstacle(o.min_ned_m, o.max_ned_m) for o in params.obstacles]
+        self.obstacles = [Obstacle(tuple(o.min_ned_m), tuple(o.max_ned_m), o.name or f"uwb obstacle {i}")
+                          for i, o in enumerate(params.obstacles, start=1)]
         self.last_nlos: bool | None = None  # truth of the last link, for diagnostics only
 
     def transmitter(self, t_s: float) -> str:
@@ -112,7 +100,7 @@ class Uwb(CachedSensor):
     def blocked(self, p0: np.ndarray, p1: np.ndarray, world: WorldView) -> bool:
         """Whether terrain or an obstacle cuts the segment between two antennas (NED, m)."""
         for ob in list(getattr(world, "obstacles", ()) or ()) + self.obstacles:
-            if segment_hits_box(p0, p1, np.asarray(ob.min_ned_m, float), np.asarray(ob.max_ned_m, float)):
+            if ob.hits_segment(p0, p1):
                 return True
         terrain = getattr(world, "terrain_height_m", None)
         return terrain is not None and segment_below_terrain(p0, p1, terrain, self.params.terrain_step_m)

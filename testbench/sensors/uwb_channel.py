@@ -85,23 +85,6 @@ def nlos_error_cdf(x_m, d_m: float, spec: ChannelSpec, nodes: int = 40):
 # --- line-of-sight geometry -----------------------------------------------------------------
 
 
-def segment_hits_box(p0: np.ndarray, p1: np.ndarray, box_min: np.ndarray, box_max: np.ndarray) -> bool:
-    """True if the segment p0 -> p1 (NED, m) crosses the axis-aligned box (slab method)."""
-    d = p1 - p0
-    t0, t1 = 0.0, 1.0
-    for k in range(3):
-        if abs(d[k]) < 1e-12:
-            if p0[k] < box_min[k] or p0[k] > box_max[k]:
-                return False
-            continue
-        a = (box_min[k] - p0[k]) / d[k]
-        b = (box_max[k] - p0[k]) / d[k]
-        t0, t1 = max(t0, min(a, b)), min(t1, max(a, b))
-        if t0 > t1:
-            return False
-    return True
-
-
 def segment_below_terrain(p0: np.ndarray, p1: np.ndarray, terrain_height_m, step_m: float) -> bool:
     """True if terrain rises above any interior point of the segment, sampled every step_m.
 

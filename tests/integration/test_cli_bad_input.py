@@ -51,6 +51,10 @@ def test_unknown_key_names_its_path(tmp_path):
         ("physics_rate_hz=-5", r"physics_rate_hz: Input should be greater than 0"),
         ("world.magnetic_anomaly={rms_nT: -5, source_depth_m: 1000}",
          r"world\.magnetic_anomaly\.rms_nT: Input should be greater than or equal to 0"),
+        ("world.obstacles=[{name: mast, min_ned_m: [20, -5, -60], max_ned_m: [10, 5, 0]}]",
+         r"world\.obstacles\[mast\]: .*north: 20\.0 is not below 10\.0 \(expected \[north, east, down\]"),
+        ("world.obstacles=[{min_ned_m: [0, 0, -60], max_ned_m: [1, 1, 0], height_m: 60}]",
+         r"world\.obstacles\[0\]\.height_m: unknown key"),
     ],
 )
 def test_wrong_type_or_unit_names_key_and_expected(tmp_path, override, pattern):

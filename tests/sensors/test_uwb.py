@@ -8,7 +8,8 @@ from scipy import stats
 
 from testbench.core.interfaces import BuildContext
 from testbench.sensors.fakes import ORIGIN, FakeWorld, make_truth
-from testbench.sensors.uwb import Obstacle, Uwb, UwbParams
+from testbench.core.obstacles import Obstacle
+from testbench.sensors.uwb import Uwb, UwbParams
 from testbench.sensors.uwb_channel import ChannelSpec, measure_ranges, nlos_error_cdf, nlos_mean_excess_m
 
 IDS = ("a", "b", "c", "d")
@@ -116,6 +117,23 @@ def test_terrain_and_obstacles_make_nlos():
         errs.append(m.range_m - 100.0)
     assert uwb.last_nlos
     assert np.mean(errs) == pytest.approx(nlos_mean_excess_m(100.0, uwb.spec) * np.exp(0.5**2 / 2), rel=0.2)
+
+
+def test_the_scenarios_obstacles_reach_the_radio():
+    """world.obstacles as a scenario gives them (validated boxes) become the run world's
+    obstacles, named, and block the links they cut, through the tick's world view."""
+    from testbench.config.schema import World
+    from testbench.sim.world_runtime import RunWorld, TickWorldView
+
+    spec = World.model_validate({"origin": {"lat_deg": 47.0, "lon_deg": -99.0, "alt_m": 500.0},
+                                 "obstacles": [{"name": "hall", "min_ned_m": [-5, 40, -50], "max_ned_m": [5, 60, 0]},
+                                               {"min_ned_m": [200, 0, -5], "max_ned_m": [201, 1, 0]}]})
+    world = RunWorld(spec, ORIGIN)
+    assert [o.name for o in world.obstacles] == ["hall", "obstacle 2"]
+    uwb = Uwb(UwbParams(), ctx=BuildContext("a", ("a", "b"), ORIGIN))
+    view = TickWorldView(world, 0.0, "a", {})
+    a, b = np.array([0.0, 0.0, -10.0]), np.array([0.0, 100.0, -10.0])
+    assert uwb.blocked(a, b, view) and not uwb.blocked(a - [0, 0, 60], b - [0, 0, 60], view)
 
 
 def test_rate_must_match_slot():
