@@ -22,7 +22,7 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, Sequence
 
 import os
 
@@ -36,6 +36,7 @@ from testbench.core.errors import InputError, SimulationAborted
 from testbench.core.geodesy import LocalTangentFrame, ned_to_geodetic
 from testbench.core.interfaces import Dynamics, GeodeticOrigin
 from testbench.core.messages import RotorCommand, SurfaceCommand, TruthState
+from testbench.core.obstacles import Obstacle
 from testbench.core.rotations import dcm_to_euler
 from testbench.core.units import (
     FT_TO_M,
@@ -132,7 +133,8 @@ class JSBSimDynamics(Dynamics):
     physics_rate_hz: JSBSim integration rate; terrain_height_fn(north_m, east_m) -> m above the
     origin altitude (None: flat ground at the origin altitude); allow_ground_contact: keep
     running on the ground (take-off studies) instead of aborting; air: wind and turbulence
-    (None: calm air).
+    (None: calm air); obstacles: boxes of the world (core.obstacles.Obstacle) whose inside
+    ends the run as a collision, checked with the ground contact wherever the truth is read.
     """
 
     def __init__(
@@ -145,6 +147,7 @@ class JSBSimDynamics(Dynamics):
         allow_ground_contact: bool = False,
         vehicle_id: str = "",
         air: AirMass | None = None,
+        obstacles: Sequence[Obstacle] = (),
     ):
         self.aircraft = aircraft
         self.origin = origin
@@ -153,6 +156,7 @@ class JSBSimDynamics(Dynamics):
         self.kind = self.aircraft_meta.get("kind", "fixed_wing")
         self._terrain = terrain_height_fn
         self._allow_ground = allow_ground_contact
+        self._obstacles = tuple(obstacles)
         self._dt_s = 1.0 / float(physics_rate_hz)
 
         self.fdm = jsbsim.FGFDMExec(None)  # root = the jsbsim package (engines, systems)
@@ -376,6 +380,14 @@ class JSBSimDynamics(Dynamics):
                 t_s=t_s,
                 vehicle_id=self.vehicle_id,
             )
+        for ob in self._obstacles:
+            if ob.contains((n_m, e_m, d_m)):
+                raise SimulationAborted(
+                    f"collision with obstacle {ob.name!r} at north {n_m:.1f} m, east {e_m:.1f} m, "
+                    f"height {-d_m:.1f} m above the origin",
+                    t_s=t_s,
+                    vehicle_id=self.vehicle_id,
+                )
         speed = math.sqrt(vn * vn + ve * ve + vd * vd) * FT_TO_M
         rate = max(abs(p), abs(q), abs(r))
         if speed > _MAX_SPEED_MPS or rate > _MAX_RATE_RPS:

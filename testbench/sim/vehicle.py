@@ -113,7 +113,7 @@ def build_vehicle(scn: Scenario, v: Vehicle, world: RunWorld, streams: RngStream
     ctx_onboard = BuildContext(v.id, ids, origin, scn.epoch_year, P, scenario_dir, None)
 
     dyn = JSBSimDynamics(v.aircraft, origin, P, terrain_height_fn=world.terrain_fn(), vehicle_id=v.id,
-                         air=air_mass(scn.world.wind, streams, v.id))
+                         air=air_mass(scn.world.wind, streams, v.id), obstacles=world.obstacles)
     sensors = []
     for s in v.sensors:
         name = s.sensor_name

@@ -105,3 +105,24 @@ def test_flight_below_the_origin_over_low_terrain():
     with pytest.raises(SimulationAborted, match="ground contact"):
         for _ in range(40):  # motors off: falls 80 m onto the canyon floor within ~5 s
             dyn.step(RotorCommand(motors=(0.0,) * 4), 0.25)
+
+
+def test_flying_into_an_obstacle_ends_the_run_naming_it():
+    """A quad hovering 8 m from a 120 m mast flies on; one whose position lies in the mast
+    ends the run as a collision naming it, as ground contact ends it."""
+    from testbench.core.errors import SimulationAborted
+    from testbench.core.interfaces import GeodeticOrigin
+    from testbench.core.obstacles import Obstacle
+    from testbench.dynamics.jsbsim_adapter import InitialCondition, JSBSimDynamics
+
+    origin = GeodeticOrigin(lat_rad=np.radians(47.0), lon_rad=np.radians(-99.0), alt_m=500.0)
+    mast = Obstacle((-2.0, -2.0, -120.0), (2.0, 2.0, 0.0), "mast")
+    clear = JSBSimDynamics("tb_quad", origin, 200.0, obstacles=(mast,), vehicle_id="q")
+    clear.reset(InitialCondition(pos_ned_m=(10.0, 0.0, -80.0)))
+    clear.advance(None, 200)
+    assert clear.truth().height_agl_m > 70.0  # 8 m off the mast: nothing happens
+    inside = JSBSimDynamics("tb_quad", origin, 200.0, obstacles=(mast,), vehicle_id="q")
+    with pytest.raises(SimulationAborted, match="collision with obstacle 'mast'"):
+        inside.reset(InitialCondition(pos_ned_m=(1.0, 0.0, -80.0)))
+        inside.advance(None, 20)
+        inside.truth()
