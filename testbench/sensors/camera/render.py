@@ -17,9 +17,11 @@ import cv2
 import numpy as np
 
 from testbench.core.camera_geometry import CameraMount, PinholeCamera, camera_pose_ned
+from testbench.core.obstacles import Obstacle
 from testbench.sensors.camera.effects import apply_effects
 from testbench.sensors.camera.flat import render_plane
 from testbench.sensors.camera.lens import distortion_remap, normalized_grid, roi_camera
+from testbench.sensors.camera.obstacles import draw_obstacles
 from testbench.sensors.camera.pyramid import dem_sampler_for, pyramid_for
 from testbench.sensors.camera.relief import render_relief
 from testbench.sensors.camera.types import RenderedFrame, RenderOptions, VehicleAppearance
@@ -80,7 +82,7 @@ def render(camera: PinholeCamera, mount: CameraMount, pos_ned_m, R_nb, imagery: 
            elevation: LocalRaster | None = None, *, vehicles: Sequence[VehicleAppearance] = (),
            rng: np.random.Generator | None = None, want_ground_points: bool = False,
            roi: tuple[int, int, int, int] | None = None,
-           options: RenderOptions = _DEFAULT_OPTIONS) -> RenderedFrame:
+           options: RenderOptions = _DEFAULT_OPTIONS, obstacles: Sequence[Obstacle] = ()) -> RenderedFrame:
     """Render what `camera`, mounted by `mount` on a vehicle at pos_ned_m (3,) NED m with
     attitude R_nb (3, 3, body->NED), sees of `imagery` over `elevation` (None: flat ground at
     options.ground_height_m).
@@ -88,8 +90,10 @@ def render(camera: PinholeCamera, mount: CameraMount, pos_ned_m, R_nb, imagery: 
     vehicles: other vehicles to draw (with their LED states); rng: noise generator (no noise
     without it); want_ground_points: also return each pixel's NED ground point;
     roi: (u0, v0, u1, v1) full-frame pixel box to render (u1, v1 exclusive), for detectors
-    that look around predicted tracks. Returns a RenderedFrame; parts of the view that the
-    map does not cover are black, masked out of `valid` and counted in `offmap_fraction`.
+    that look around predicted tracks; obstacles: the world's boxes (core.obstacles), drawn
+    over the ground and hiding the vehicles behind them, their pixels neither `valid` nor
+    `sky`. Returns a RenderedFrame; parts of the view that the map does not cover are black,
+    masked out of `valid` and counted in `offmap_fraction`.
     """
     roi_box = _check_roi(camera, roi)
     cam = camera if roi is None else roi_camera(camera, roi_box)
@@ -110,6 +114,12 @@ def render(camera: PinholeCamera, mount: CameraMount, pos_ned_m, R_nb, imagery: 
         if want_ground_points:
             points = points_fn()
     u0, v0 = roi_box[0], roi_box[1]
+    covered = None  # pixels an obstacle covers: neither ground nor sky
+    if obstacles:
+        covered = draw_obstacles(rgb, cam, C, R_nc, obstacles, options.near_m, options.far_m)
+        valid, sky = valid & ~covered, sky & ~covered
+        if points is not None:
+            points[covered] = np.nan
     truths = ()
     if vehicles:
         def ground_depth(u: float, v: float) -> float:  # full-frame pixel -> region pixel
@@ -118,8 +128,10 @@ def render(camera: PinholeCamera, mount: CameraMount, pos_ned_m, R_nb, imagery: 
             return ground_depth_roi(ur, vr)
 
         truths = draw_vehicles(rgb, camera, (u0, v0), C, R_nc, vehicles, options.near_m,
-                               options.far_m, ground_depth)
+                               options.far_m, ground_depth, obstacles)
     rgb = apply_effects(rgb, cam, options, rng)
-    # Off-map share: pixels neither sky nor ground with data (valid and sky never overlap).
-    offmap = 0.0 if complete else 1.0 - float(np.count_nonzero(valid | sky)) / valid.size
+    # Off-map share: pixels neither sky nor ground with data nor an obstacle (valid and sky
+    # never overlap).
+    seen = valid | sky if covered is None else valid | sky | covered
+    offmap = 0.0 if complete else 1.0 - float(np.count_nonzero(seen)) / valid.size
     return RenderedFrame(rgb, valid, sky, offmap, truths, None if roi is None else roi_box, points)

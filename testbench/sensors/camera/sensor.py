@@ -178,12 +178,13 @@ class CameraSensor(Sensor):
         opts = self._options
         if self.params.exposure_s > 0.0:
             opts = _with_motion_blur(opts, self.camera, R_nc, truth, self.params.exposure_s)
+        obstacles = tuple(getattr(world, "obstacles", ()) or ())
         rois = [None] if requests is None else list(requests)
         parts = []
         for roi in rois:
             full = roi is not None and tuple(roi) == (0, 0, self.camera.width_px, self.camera.height_px)
             parts.append(render(self.camera, self.mount, pos, R_nb, imagery, elevation, vehicles=vehicles, rng=rng,
-                                roi=None if full else roi, options=opts))
+                                roi=None if full else roi, options=opts, obstacles=obstacles))
         whole = next((p for p in parts if p.roi is None), None)
         truths = _merge_truths(parts)
         n_px = sum(p.valid.size for p in parts)
@@ -198,12 +199,15 @@ class CameraSensor(Sensor):
 
     def _annotations_only(self, truth: TruthState, world: Any, centre: np.ndarray, R_nc: np.ndarray, requests) -> CameraFrame:
         """A frame without pixels: zero-stride black images of the requested regions, with the
-        truth of the other vehicles (projected, nothing drawn; no terrain occlusion)."""
+        truth of the other vehicles (projected, nothing drawn; hidden by obstacles, not by
+        terrain)."""
         cam = self.camera
         vehicles = tuple(world.appearances(truth.t_s)) if self.params.render_vehicles and hasattr(world, "appearances") else ()
         scratch = np.zeros((1, 1, 3), np.uint8)
         far = (-(10**7), -(10**7))  # the scratch region lies off every vehicle: nothing is drawn
-        truths = draw_vehicles(scratch, cam, far, centre, R_nc, vehicles, self.params.near_m, self.params.far_m, None) if vehicles else ()
+        obstacles = tuple(getattr(world, "obstacles", ()) or ())
+        truths = draw_vehicles(scratch, cam, far, centre, R_nc, vehicles, self.params.near_m, self.params.far_m, None,
+                               obstacles) if vehicles else ()
         parts = []
         for roi in [None] if requests is None else list(requests):
             box = (0, 0, cam.width_px, cam.height_px) if roi is None else tuple(int(x) for x in roi)

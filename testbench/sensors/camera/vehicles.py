@@ -17,11 +17,12 @@ import cv2
 import numpy as np
 
 from testbench.core.camera_geometry import PinholeCamera
+from testbench.core.obstacles import first_hit
 from testbench.sensors.camera.lens import project_points
 from testbench.sensors.camera.types import VehicleAppearance, VehicleTruth
 
 # Unit vector towards the sun in NED: azimuth 135 deg (south-east), elevation 50 deg.
-_SUN_NED = np.array([np.cos(np.radians(50)) * np.cos(np.radians(135)),
+SUN_NED = np.array([np.cos(np.radians(50)) * np.cos(np.radians(135)),
                      np.cos(np.radians(50)) * np.sin(np.radians(135)), -np.sin(np.radians(50))])
 _SHIFT = 4  # sub-pixel bits for cv2 drawing
 # Draw item kinds: a face, a far vehicle's whole silhouette (its convex hull, which covers its
@@ -151,7 +152,7 @@ class _FrameProjection:
         c_n = p + centroids_b @ R_nb.T
         facing = np.einsum("ij,ij->i", n_n, c_n - C)
         lit_n = np.where(one_sided[:, None], n_n, -np.sign(facing)[:, None] * n_n)
-        light = 0.45 + 0.55 * np.maximum(0.0, lit_n @ _SUN_NED)
+        light = 0.45 + 0.55 * np.maximum(0.0, lit_n @ SUN_NED)
         show = ~(one_sided & (facing >= 0))
         base = np.asarray(veh.colour_rgb, float)
         if max(bbox[2] - bbox[0], bbox[3] - bbox[1]) < _SILHOUETTE_PX:
@@ -242,13 +243,15 @@ def _project_frame(camera: PinholeCamera, C: np.ndarray, R_nc: np.ndarray,
 
 def draw_vehicles(img: np.ndarray, camera: PinholeCamera, roi_origin: tuple[int, int],
                   centre_ned_m, R_nc, vehicles: Sequence[VehicleAppearance], near_m: float,
-                  far_m: float, ground_depth: Callable[[float, float], float] | None) -> tuple[VehicleTruth, ...]:
+                  far_m: float, ground_depth: Callable[[float, float], float] | None,
+                  obstacles: Sequence = ()) -> tuple[VehicleTruth, ...]:
     """Draw `vehicles` into `img` (the rendered region, top-left at full-frame pixel
     roi_origin) and return their truth in full-frame pixel coordinates (arrays read-only).
 
     camera: the full-frame camera; ground_depth(u, v): camera depth of the terrain seen at a
-    full-frame pixel (inf where sky), used to hide vehicles behind terrain. Vehicles whose
-    projection misses the rendered region get their truth but are not drawn.
+    full-frame pixel (inf where sky), used to hide vehicles behind terrain; obstacles: boxes
+    (core.obstacles.Obstacle) that hide the vehicles whose centre they stand in front of.
+    Vehicles whose projection misses the rendered region get their truth but are not drawn.
     """
     if not vehicles:
         return ()
@@ -263,6 +266,8 @@ def draw_vehicles(img: np.ndarray, camera: PinholeCamera, roi_origin: tuple[int,
             cu, cv_ = pr.centre_px_clipped[j]
             if not pr.centre_z[j] < ground_depth(float(cu), float(cv_)):
                 tr = replace(tr, visible=False)  # behind the terrain
+        if tr.visible and obstacles and first_hit(pr.C, veh.pos_ned_m, obstacles) is not None:
+            tr = replace(tr, visible=False)  # behind an obstacle
         truths.append(tr)
         if not tr.visible:
             continue
