@@ -1,0 +1,203 @@
+"""Conformance checks a user runs on their own component before plugging it into a scenario.
+
+DESIGN.md, Interfaces: every swappable part has a reference implementation and a check here
+that a user's class passes the way the reference does: outputs of the promised shapes and
+types, covariances symmetric and positive semi-definite, the same seed giving the same output,
+and the interface's own rules (a sensor asked twice for one sample time does not walk its noise
+twice; a detector does not write into the frame it was given). Each check takes a factory that
+builds a fresh component, so that it can compare two of them fed alike, and raises
+ConformanceError naming the rule broken and what was expected.
+
+    from testbench.testing import check_sensor
+    check_sensor(lambda: MyBarometer(MyBarometer.Params(), ctx=context))
+
+Checks exist for sensors, navigators, detectors and controllers, the parts users replace most;
+a scene matcher, a metric or a dynamics model has none yet (their reference implementations'
+own tests in tests/ show what they are held to). The project's own tests run every check on
+the reference implementations and on a broken component of each kind
+(tests/test_conformance.py).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from testbench.core.interfaces import Controller, Detector, Navigator, Sensor
+from testbench.core.messages import NavEstimate, TruthState
+
+
+class ConformanceError(AssertionError):
+    """A component breaks a rule of its interface (the message names the rule)."""
+
+
+def check_sensor(make: Callable[[], Sensor], truths: Sequence[TruthState] | None = None, world: Any = None,
+                 seed: int = 0) -> None:
+    """A Sensor: rate_hz > 0 (its name is the scenario's, set when a vehicle is assembled);
+    the same truths and seed give the same measurements; asking again for one sample time
+    returns that sample and does not walk the noise (the next sample is as if it had been
+    asked once). truths: samples at the sensor's rate (default: a
+    vehicle at rest 100 m up, 2 s); world: its WorldView (default: an empty FakeWorld)."""
+    from testbench.sensors.fakes import FakeWorld, make_truth
+
+    a, b = make(), make()
+    if not (np.isfinite(a.rate_hz) and a.rate_hz > 0):
+        raise ConformanceError(f"sensor rate_hz must be a positive number of samples per second, got {a.rate_hz!r}")
+    if truths is None:
+        truths = [make_truth(k / a.rate_hz, pos_ned_m=(0.0, 0.0, -100.0)) for k in range(int(2 * a.rate_hz) + 1)]
+
+    def view(t: TruthState) -> Any:
+        return world if world is not None else FakeWorld(t.t_s)
+
+    rng_a, rng_b = np.random.default_rng(seed), np.random.default_rng(seed)
+    for i, t in enumerate(truths):
+        m_a = a.measure(t, view(t), rng_a)
+        again = a.measure(t, view(t), rng_a)
+        if not _same(m_a, again):
+            raise ConformanceError(f"sensor asked twice at t={t.t_s} s gave two different measurements; expected the "
+                                   "cached sample (noise state evolves once per sample time)")
+        m_b = b.measure(t, view(t), rng_b)
+        if not _same(m_a, m_b):
+            raise ConformanceError(f"sample {i} (t={t.t_s} s): two sensors asked once / twice per sample time with the "
+                                   "same seed differ; expected the second ask to change nothing")
+
+
+def check_navigator(make: Callable[[], Navigator], initial: NavEstimate, imu_samples: Sequence[Any],
+                    corrections: Sequence[Any] = ()) -> None:
+    """A Navigator: after initialize(initial), every predict(imu) and correct(m) leaves an
+    estimate with finite state, a unit attitude quaternion, and symmetric positive
+    semi-definite covariances, its time never going back; two navigators fed alike give the
+    same estimates. corrections: aiding measurements, each used after the IMU sample of its
+    time."""
+    a, b = make(), make()
+    for nav in (a, b):
+        nav.initialize(initial.t_s, initial)
+    events = sorted([(float(m.t_s), 0, m) for m in imu_samples] + [(float(m.t_s), 1, m) for m in corrections],
+                    key=lambda e: (e[0], e[1]))
+    last_t = initial.t_s
+    for t, kind, m in events:
+        for nav in (a, b):
+            nav.predict(m) if kind == 0 else nav.correct(m)
+        ea, eb = a.estimate(), b.estimate()
+        _check_estimate(ea, f"after the {'IMU sample' if kind == 0 else type(m).__name__} at t={t} s")
+        if ea.t_s < last_t - 1e-9:
+            raise ConformanceError(f"estimate time went back from {last_t} s to {ea.t_s} s")
+        last_t = ea.t_s
+        if not _same(ea, eb):
+            raise ConformanceError(f"two navigators fed the same measurements differ at t={t} s; expected the same "
+                                   "estimate (determinism)")
+
+
+def check_detector(make: Callable[[], Detector], images: Sequence[np.ndarray]) -> None:
+    """A Detector: centre_reference "vehicle_centre" or "led_centroid"; detect(image) returns a
+    list of Detection whose centres and boxes are finite, boxes ordered (u0 <= u1, v0 <= v1)
+    and scores in [0, 1]; the image it was given is unchanged; the same image gives the same
+    detections, from this detector and from a second one."""
+    from testbench.navigation.relative.types import Detection
+
+    a, b = make(), make()
+    if a.centre_reference not in ("vehicle_centre", "led_centroid"):
+        raise ConformanceError(f"detector centre_reference must be 'vehicle_centre' or 'led_centroid', "
+                               f"got {a.centre_reference!r}")
+    for k, image in enumerate(images):
+        before = np.array(image, copy=True)
+        found = a.detect(image)
+        if not np.array_equal(before, image):
+            raise ConformanceError(f"detector wrote into image {k}: expected the frame left as given "
+                                   "(the other detectors and the recorder share it)")
+        if not isinstance(found, list) or not all(isinstance(d, Detection) for d in found):
+            raise ConformanceError(f"image {k}: detect must return a list of Detection, got {type(found).__name__}")
+        for d in found:
+            u0, v0, u1, v1 = d.bbox_px
+            if not (np.all(np.isfinite(d.bbox_px)) and np.all(np.isfinite(d.centre_px))):
+                raise ConformanceError(f"image {k}: detection with a non-finite box or centre: {d}")
+            if u0 > u1 or v0 > v1:
+                raise ConformanceError(f"image {k}: box {d.bbox_px} not ordered (expected u0 <= u1, v0 <= v1)")
+            if not 0.0 <= d.score <= 1.0:
+                raise ConformanceError(f"image {k}: score {d.score} outside [0, 1]")
+        if not _same(found, a.detect(image)) or not _same(found, b.detect(image)):
+            raise ConformanceError(f"image {k}: the same image gave different detections (expected determinism)")
+
+
+def check_controller(make: Callable[[], Controller], estimates: Sequence[NavEstimate],
+                     reference: Any = None) -> None:
+    """A Controller: update(t, estimate) returns a command (not None) whose numbers are
+    finite; status() is None or a GuidanceStatus; it does not change the estimate it was
+    given; two controllers fed alike command alike."""
+    from testbench.core.messages import GuidanceStatus
+
+    a, b = make(), make()
+    for est in estimates:
+        before = dataclasses.replace(est)
+        arrays = {f.name: np.array(getattr(est, f.name), copy=True) for f in dataclasses.fields(est)
+                  if isinstance(getattr(est, f.name), np.ndarray)}
+        ca = a.update(est.t_s, est, reference)
+        cb = b.update(est.t_s, est, reference)
+        if ca is None:
+            raise ConformanceError(f"update at t={est.t_s} s returned None; expected a command")
+        if not all(np.array_equal(arrays[k], getattr(est, k)) for k in arrays) or before.t_s != est.t_s:
+            raise ConformanceError(f"update at t={est.t_s} s changed the estimate it was given")
+        values = np.asarray(_numbers(ca), float)
+        if values.size and not np.all(np.isfinite(values)):
+            raise ConformanceError(f"command at t={est.t_s} s has non-finite values: {ca}")
+        if not _same(ca, cb):
+            raise ConformanceError(f"two controllers fed the same estimates commanded differently at t={est.t_s} s")
+        status = a.status()
+        if status is not None and not isinstance(status, GuidanceStatus):
+            raise ConformanceError(f"status() must be None or a GuidanceStatus, got {type(status).__name__}")
+
+
+# -- helpers ----------------------------------------------------------------------------------
+
+
+def _check_estimate(e: NavEstimate, where: str) -> None:
+    for name in ("pos_ned_m", "vel_ned_mps", "rpy_rad", "omega_b_rps"):
+        v = np.asarray(getattr(e, name), float)
+        if v.shape != (3,) or not np.all(np.isfinite(v)):
+            raise ConformanceError(f"{where}: {name} must be 3 finite numbers, got {v}")
+    q = np.asarray(e.q_nb_wxyz, float)
+    if q.shape != (4,) or not abs(np.linalg.norm(q) - 1.0) < 1e-6:
+        raise ConformanceError(f"{where}: q_nb_wxyz must be a unit quaternion (4,), got {q}")
+    for name in ("cov_pos_ned_m2", "cov_vel_ned_m2s2", "cov_att_rad2"):
+        P = np.asarray(getattr(e, name), float)
+        if P.shape != (3, 3) or not np.all(np.isfinite(P)):
+            raise ConformanceError(f"{where}: {name} must be a finite (3, 3) matrix, got shape {P.shape}")
+        if not np.allclose(P, P.T, rtol=1e-9, atol=1e-12 * max(1.0, float(np.abs(P).max()))):
+            raise ConformanceError(f"{where}: {name} is not symmetric")
+        if np.linalg.eigvalsh(0.5 * (P + P.T)).min() < -1e-9 * max(1.0, float(np.abs(P).max())):
+            raise ConformanceError(f"{where}: {name} is not positive semi-definite (eigenvalues "
+                                   f"{np.linalg.eigvalsh(0.5 * (P + P.T))})")
+
+
+def _numbers(x: Any) -> list[float]:
+    """Every number inside a command (dataclass fields, tuples, arrays), flattened."""
+    if dataclasses.is_dataclass(x):
+        return [v for f in dataclasses.fields(x) for v in _numbers(getattr(x, f.name))]
+    if isinstance(x, (list, tuple)):
+        return [v for item in x for v in _numbers(item)]
+    if isinstance(x, np.ndarray):
+        return [float(v) for v in x.ravel()] if x.dtype.kind in "fiu" else []
+    if isinstance(x, (bool, np.bool_)):
+        return []
+    if isinstance(x, (int, float, np.integer, np.floating)):
+        return [float(x)]
+    return []
+
+
+def _same(x: Any, y: Any) -> bool:
+    """Deep equality of measurements, estimates and commands (arrays exactly, nan equal nan)."""
+    if type(x) is not type(y):
+        return False
+    if dataclasses.is_dataclass(x):
+        return all(_same(getattr(x, f.name), getattr(y, f.name)) for f in dataclasses.fields(x))
+    if isinstance(x, (list, tuple)):
+        return len(x) == len(y) and all(_same(p, q) for p, q in zip(x, y))
+    if isinstance(x, dict):
+        return x.keys() == y.keys() and all(_same(x[k], y[k]) for k in x)
+    if isinstance(x, np.ndarray):
+        return x.shape == y.shape and bool(np.array_equal(x, y, equal_nan=x.dtype.kind in "fc"))
+    if isinstance(x, float):
+        return x == y or (np.isnan(x) and np.isnan(y))
+    return bool(x == y)
