@@ -78,6 +78,12 @@ def _config_table(record: RunRecord) -> Table:
         field = "the run's own draw" if anomaly.get("seed") is None else f"field seed {anomaly['seed']}"
         rows.append(["magnetic anomaly", f"{fmt(anomaly.get('rms_nT'))} nT RMS at the origin's altitude, sources "
                                          f"{fmt(anomaly.get('source_depth_m'))} m deep ({field})"])
+    for i, ob in enumerate((info.get("world") or {}).get("obstacles") or [], start=1):
+        lo, hi = ob.get("min_ned_m"), ob.get("max_ned_m")
+        if lo and hi:
+            rows.append([f"obstacle {ob.get('name') or i}",
+                         f"box north {fmt(lo[0])}–{fmt(hi[0])} m, east {fmt(lo[1])}–{fmt(hi[1])} m, "
+                         f"{fmt(0.0 - hi[2])}–{fmt(0.0 - lo[2])} m above the origin"])  # 0.0 - x: no "-0"
     ph = record.phases
     rows.append(["turning phase", f"|bank| > {ph['turn_bank_deg']:g}° or |turn rate| > {ph['turn_rate_deg_s']:g}°/s"])
     if "same_raster" in info and record.event("ismn") is not None:
