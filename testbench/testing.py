@@ -11,9 +11,9 @@ ConformanceError naming the rule broken and what was expected.
     from testbench.testing import check_sensor
     check_sensor(lambda: MyBarometer(MyBarometer.Params(), ctx=context))
 
-Checks exist for sensors, navigators, detectors and controllers, the parts users replace most;
-a scene matcher, a metric or a dynamics model has none yet (their reference implementations'
-own tests in tests/ show what they are held to). The project's own tests run every check on
+Checks exist for sensors, navigators, scene matchers, detectors and controllers, the parts
+users replace most; a metric or a dynamics model has none yet (their reference
+implementations' own tests in tests/ show what they are held to). The project's own tests run every check on
 the reference implementations and on a broken component of each kind
 (tests/test_conformance.py).
 """
@@ -25,7 +25,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from testbench.core.interfaces import Controller, Detector, Navigator, Sensor
+from testbench.core.interfaces import Controller, Detector, Navigator, SceneMatcher, Sensor
 from testbench.core.messages import NavEstimate, TruthState
 
 
@@ -147,6 +147,63 @@ def check_controller(make: Callable[[], Controller], estimates: Sequence[NavEsti
         status = a.status()
         if status is not None and not isinstance(status, GuidanceStatus):
             raise ConformanceError(f"status() must be None or a GuidanceStatus, got {type(status).__name__}")
+
+
+def check_scene_matcher(make: Callable[[], SceneMatcher], ortho: np.ndarray, map_window: np.ndarray, prior: Any,
+                        expected_offset_px: Sequence[float] | None = None, tolerance_px: float = 1.0) -> None:
+    """A SceneMatcher: match(ortho, map_window, prior) returns None or a MatchResult whose
+    offset_px is 2 finite numbers, quality in [0, 1], cov_px2 a finite symmetric positive
+    definite (2, 2) matrix, and correspondences both None or both (N, 2) finite arrays of one
+    length; the inputs are unchanged; the same inputs give the same result, from this matcher
+    and from a second one. ortho (H, W) uint8 grey (a matcher with accepts_ortho_frame gets
+    it as an OrthoFrame made from the array, as the pipeline gives one); prior: a
+    navigation.ismn.types.MatchPrior. expected_offset_px: where the ortho frame truly lies
+    against prior.origin_px (d_col, d_row), when the caller made the pair so: the result must
+    then exist and lie within tolerance_px of it."""
+    from testbench.navigation.ismn.types import MatchResult, OrthoFrame
+
+    a, b = make(), make()
+    ortho = np.asarray(ortho)
+    keep = (ortho.copy(), np.array(map_window, copy=True))
+
+    def frame() -> Any:
+        if not getattr(a, "accepts_ortho_frame", False):
+            return ortho
+        valid = prior.ortho_valid if prior.ortho_valid is not None else np.ones(ortho.shape, bool)
+        return OrthoFrame(ortho.shape, 0.0, 0.0, float(prior.gsd_m), tuple(int(round(x)) for x in prior.origin_px),
+                          np.eye(3), image=ortho, valid=valid)
+
+    res = a.match(frame(), map_window, prior)
+    if not (np.array_equal(keep[0], ortho) and np.array_equal(keep[1], map_window)):
+        raise ConformanceError("matcher wrote into the ortho frame or the map window: expected them left as given "
+                               "(the pipeline caches and reuses both)")
+    if res is None:
+        if expected_offset_px is not None:
+            raise ConformanceError(f"no match, where the ortho frame lies at offset {tuple(expected_offset_px)} px")
+    else:
+        if not isinstance(res, MatchResult):
+            raise ConformanceError(f"match must return a MatchResult or None, got {type(res).__name__}")
+        off = np.asarray(res.offset_px, float)
+        if off.shape != (2,) or not np.all(np.isfinite(off)):
+            raise ConformanceError(f"offset_px must be 2 finite numbers (d_col, d_row), got {res.offset_px}")
+        if not 0.0 <= float(res.quality) <= 1.0:
+            raise ConformanceError(f"quality {res.quality} outside [0, 1]")
+        C = np.asarray(res.cov_px2, float)
+        if C.shape != (2, 2) or not np.all(np.isfinite(C)) or not np.allclose(C, C.T) or np.linalg.eigvalsh(C).min() <= 0:
+            raise ConformanceError(f"cov_px2 must be a finite symmetric positive definite (2, 2) matrix, got {C}")
+        if (res.ortho_px is None) != (res.map_px is None):
+            raise ConformanceError("ortho_px and map_px must both be correspondences or both None")
+        if res.ortho_px is not None:
+            o, m = np.asarray(res.ortho_px, float), np.asarray(res.map_px, float)
+            if o.ndim != 2 or o.shape[1] != 2 or o.shape != m.shape or not (np.all(np.isfinite(o)) and np.all(np.isfinite(m))):
+                raise ConformanceError(f"correspondences must be two finite (N, 2) arrays of one N, got {o.shape} and {m.shape}")
+        if expected_offset_px is not None:
+            miss = float(np.hypot(*(off - np.asarray(expected_offset_px, float))))
+            if miss > tolerance_px:
+                raise ConformanceError(f"offset {tuple(off)} px is {miss:.2f} px from the true {tuple(expected_offset_px)} "
+                                       f"(expected within {tolerance_px} px)")
+    if not _same(res, a.match(frame(), map_window, prior)) or not _same(res, b.match(frame(), map_window, prior)):
+        raise ConformanceError("the same frame, map window and prior gave different matches (expected determinism)")
 
 
 # -- helpers ----------------------------------------------------------------------------------

@@ -13,7 +13,8 @@ from testbench.core.interfaces import BuildContext, Controller, Detector, Naviga
 from testbench.core.messages import NavEstimate
 from testbench.dynamics.catalog import aircraft_meta
 from testbench.sensors.fakes import ORIGIN, FakeWorld, make_truth
-from testbench.testing import ConformanceError, check_controller, check_detector, check_navigator, check_sensor
+from testbench.testing import (ConformanceError, check_controller, check_detector, check_navigator, check_scene_matcher,
+                               check_sensor)
 
 CTX = BuildContext("uav0", ("uav0", "uav1"), ORIGIN)
 
@@ -153,3 +154,48 @@ class _Runaway(Controller):
 def test_a_controller_with_a_non_finite_command_fails():
     with pytest.raises(ConformanceError, match="non-finite"):
         check_controller(_Runaway, _estimates())
+
+
+def _scene_pair():
+    """A map window of one season and an ortho frame of the other, placed (6.3, -4.6) px from
+    the predicted (60, 70)."""
+    import cv2
+
+    from testbench.navigation.ismn.synth import procedural_seasons
+    from testbench.navigation.ismn.types import MatchPrior
+
+    summer, winter = procedural_seasons(np.random.default_rng(7), 700, 4.0, n_fields=120)
+    A = np.array([[1.0, 0.0, 60 + 6.3], [0.0, 1.0, 70 - 4.6]])
+    ortho = cv2.warpAffine(summer.data[:, :, 0], A, (560, 440), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP)
+    return ortho, winter.data[:600, :700, 0].copy(), MatchPrior((60, 70), 20.0)
+
+
+@pytest.mark.parametrize("name", ["ncc", "phase"])
+def test_the_reference_matchers_conform(name):
+    ortho, window, prior = _scene_pair()
+    check_scene_matcher(lambda: registry.build("matcher", name, None, "test.matcher", ctx=None), ortho, window, prior,
+                        expected_offset_px=(6.3, -4.6), tolerance_px=0.5)
+
+
+class _HalfPixelOff:
+    """Reports the placement half a pixel off in columns; with certain=True it also claims no
+    uncertainty at all (a zero covariance)."""
+
+    accepts_ortho_frame = False
+
+    def __init__(self, certain: bool = False):
+        self.cov = np.zeros((2, 2)) if certain else np.eye(2) * 0.04
+
+    def match(self, ortho, window, prior):
+        from testbench.navigation.ismn.types import MatchResult
+
+        return MatchResult(np.array([6.8, -4.6]), None, None, 0.9, self.cov)
+
+
+def test_a_matcher_off_the_true_placement_or_claiming_no_uncertainty_fails():
+    ortho, window, prior = _scene_pair()
+    check_scene_matcher(_HalfPixelOff, ortho, window, prior, expected_offset_px=(6.3, -4.6), tolerance_px=0.6)
+    with pytest.raises(ConformanceError, match="0.50 px from the true"):
+        check_scene_matcher(_HalfPixelOff, ortho, window, prior, expected_offset_px=(6.3, -4.6), tolerance_px=0.25)
+    with pytest.raises(ConformanceError, match="positive definite"):
+        check_scene_matcher(lambda: _HalfPixelOff(certain=True), ortho, window, prior)
