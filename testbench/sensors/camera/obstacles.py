@@ -9,14 +9,15 @@ edges are cut into short segments before the lens model maps them, so that strai
 as the lens bends the ground under them. `hidden_by_obstacle` says whether a box stands between the camera and a
 point (the vehicles' occlusion, as terrain hides them).
 
-What it does not model: terrain in front of a box (a hill hides nothing of a box behind it),
-and a box's own shadow on the ground.
+Over relief, the terrain hides the parts of a box behind it, pixel by pixel against the
+renderer's coarse terrain depths (those edges are not smoothed). Not modelled: a box's shadow
+on the ground.
 """
 
 from __future__ import annotations
 
 from functools import lru_cache
-from typing import Sequence
+from typing import Callable, Sequence
 
 import cv2
 import numpy as np
@@ -40,11 +41,14 @@ def hidden_by_obstacle(eye_ned_m, point_ned_m, obstacles: Sequence[Obstacle]) ->
 
 
 def draw_obstacles(img: np.ndarray, camera: PinholeCamera, C: np.ndarray, R_nc: np.ndarray,
-                   obstacles: Sequence[Obstacle], near_m: float, far_m: float) -> np.ndarray:
+                   obstacles: Sequence[Obstacle], near_m: float, far_m: float,
+                   ground_depth: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None) -> np.ndarray:
     """Paint the faces of `obstacles` that camera `camera` (its pixel grid is img's: for a
     region, the region's camera) at C (3,) NED m with attitude R_nc (3, 3, camera -> NED)
     sees; returns the (h, w) bool mask of the pixels they cover. Faces wholly beyond far_m
-    are not drawn (the ground there is haze and sky)."""
+    are not drawn (the ground there is haze and sky). ground_depth(cols, rows) -> camera depth
+    (m) of the terrain seen at those pixels of img (inf where none): where given (relief), a
+    face's pixels behind the terrain are left to it (a hill in front of a building)."""
     h, w = img.shape[:2]
     mask = np.zeros((h, w), np.uint8)
     C = np.asarray(C, float)
@@ -58,15 +62,39 @@ def draw_obstacles(img: np.ndarray, camera: PinholeCamera, C: np.ndarray, R_nc: 
             poly_c = _clip_to_view((_subdivide(corners_ned) - C) @ R_cn.T, camera, near_m)
             if len(poly_c) < 3 or np.all(poly_c[:, 2] > far_m):
                 continue
+            plane_c = (R_cn @ normal, float((R_cn @ normal) @ (R_cn @ (corners_ned[0] - C))))
             faces.append((float(np.linalg.norm(corners_ned.mean(axis=0) - C)), _to_pixels(camera, poly_c),
-                          tuple(float(x) for x in np.clip(_ALBEDO_RGB * shade, 0, 255))))
+                          tuple(float(x) for x in np.clip(_ALBEDO_RGB * shade, 0, 255)), plane_c))
     faces.sort(key=lambda f: -f[0])  # far first: nearer faces paint over them
     scale = 1 << _SHIFT
-    for _, px, rgb in faces:
+    for _, px, rgb, plane_c in faces:
         pts = np.round(px * scale).astype(np.int32)
+        if ground_depth is not None:
+            face = np.zeros((h, w), np.uint8)
+            cv2.fillPoly(face, [pts], 1, lineType=cv2.LINE_8, shift=_SHIFT)
+            rows, cols = np.nonzero(face)
+            hidden = _behind_terrain(camera, cols, rows, plane_c, ground_depth)
+            if hidden.any():  # part of the face is behind the terrain: paint the rest, unsmoothed
+                keep = ~hidden
+                img[rows[keep], cols[keep]] = np.round(rgb).astype(img.dtype)
+                mask[rows[keep], cols[keep]] = 1
+                continue
         cv2.fillPoly(img, [pts], rgb, lineType=cv2.LINE_AA, shift=_SHIFT)
         cv2.fillPoly(mask, [pts], 1, lineType=cv2.LINE_8, shift=_SHIFT)
     return mask.astype(bool)
+
+
+def _behind_terrain(camera: PinholeCamera, cols: np.ndarray, rows: np.ndarray, plane_c: tuple[np.ndarray, float],
+                    ground_depth: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> np.ndarray:
+    """(n,) bool: which pixels (cols, rows) of a face on the plane n_c . X = d_c (camera frame)
+    see the terrain nearer than the face (camera depths compared along each pixel's ray)."""
+    if cols.size == 0:
+        return np.zeros(0, bool)
+    x, y = undistort_pixels(camera, cols.astype(float), rows.astype(float))
+    n_c, d_c = plane_c
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z_face = d_c / (n_c[0] * x + n_c[1] * y + n_c[2])
+    return np.asarray(ground_depth(cols, rows), float) < z_face
 
 
 def _subdivide(corners: np.ndarray) -> np.ndarray:

@@ -116,7 +116,12 @@ def render(camera: PinholeCamera, mount: CameraMount, pos_ned_m, R_nb, imagery: 
     u0, v0 = roi_box[0], roi_box[1]
     covered = None  # pixels an obstacle covers: neither ground nor sky
     if obstacles:
-        covered = draw_obstacles(rgb, cam, C, R_nc, obstacles, options.near_m, options.far_m)
+        terrain_depth = None
+        if elevation is not None:
+            def terrain_depth(cols: np.ndarray, rows: np.ndarray) -> np.ndarray:  # region px -> camera depth m
+                return t2[np.minimum(np.round(rows / k).astype(int), t2.shape[0] - 1),
+                          np.minimum(np.round(cols / k).astype(int), t2.shape[1] - 1)]
+        covered = draw_obstacles(rgb, cam, C, R_nc, obstacles, options.near_m, options.far_m, terrain_depth)
         valid, sky = valid & ~covered, sky & ~covered
         if points is not None:
             points[covered] = np.nan

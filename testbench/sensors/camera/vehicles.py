@@ -23,7 +23,7 @@ from testbench.sensors.camera.types import VehicleAppearance, VehicleTruth
 
 # Unit vector towards the sun in NED: azimuth 135 deg (south-east), elevation 50 deg.
 SUN_NED = np.array([np.cos(np.radians(50)) * np.cos(np.radians(135)),
-                     np.cos(np.radians(50)) * np.sin(np.radians(135)), -np.sin(np.radians(50))])
+                    np.cos(np.radians(50)) * np.sin(np.radians(135)), -np.sin(np.radians(50))])
 _SHIFT = 4  # sub-pixel bits for cv2 drawing
 # Draw item kinds: a face, a far vehicle's whole silhouette (its convex hull, which covers its
 # own outboard LEDs without hiding them), an LED.

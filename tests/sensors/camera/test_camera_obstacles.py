@@ -130,3 +130,24 @@ def test_a_wall_beside_the_view_does_not_fold_back_into_it(ground):
     covered = ~(f.valid | f.sky)
     assert covered[:, :100].mean() > 0.95
     assert covered[:, 200:].mean() < 0.05
+
+
+def test_a_ridge_hides_the_foot_of_a_tower_behind_it():
+    """Over relief the terrain in front of a box hides what it covers: from 40 m up, a 35 m
+    ridge 40 m ahead hides a tower 80 m ahead below about 30 m; its top shows."""
+    north = 150.0 - np.arange(300)[:, None] - 0.5  # row centres, north m (the raster runs south)
+    dem_h = 35.0 * np.exp(-((north - 40.0) ** 2) / (2 * 6.0**2)) * np.ones((1, 300))
+    dem = raster(dem_h.astype(np.float32), 1.0, (0.0, 0.0))
+    img = raster(textured(300, seed=5), 1.0, (0.0, 0.0))
+    tower = Obstacle((80.0, -10.0, -70.0), (90.0, 10.0, 0.0), "tower")
+    pos = np.array([0.0, 0.0, -40.0])
+    C, R_nc = camera_pose_ned(pos, np.eye(3), LEVEL)
+    (top, foot), _ = project_points(CAM, C, R_nc, np.array([[80.0, 0.0, -60.0], [80.0, 0.0, -15.0]]))
+    (ut, vt), (uf, vf) = np.round(top).astype(int), np.round(foot).astype(int)
+    f = render(CAM, LEVEL, pos, np.eye(3), img, dem, options=NO_HAZE, obstacles=(tower,))
+    assert not (f.valid | f.sky)[vt, ut]
+    assert f.valid[vf, uf]  # the ridge, not the tower
+    # Without the ridge the foot is the tower's.
+    flat = raster(np.zeros((300, 300), np.float32), 1.0, (0.0, 0.0))
+    g = render(CAM, LEVEL, pos, np.eye(3), img, flat, options=NO_HAZE, obstacles=(tower,))
+    assert not (g.valid | g.sky)[vf, uf]
