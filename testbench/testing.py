@@ -11,10 +11,9 @@ ConformanceError naming the rule broken and what was expected.
     from testbench.testing import check_sensor
     check_sensor(lambda: MyBarometer(MyBarometer.Params(), ctx=context))
 
-Checks exist for sensors, navigators, scene matchers, detectors and controllers, the parts
-users replace most; a metric or a dynamics model has none yet (their reference
-implementations' own tests in tests/ show what they are held to). The project's own tests run every check on
-the reference implementations and on a broken component of each kind
+Every interface of DESIGN.md has its check: check_dynamics, check_sensor, check_navigator,
+check_scene_matcher, check_detector, check_controller and check_metric. The project's own tests
+run each on the reference implementations and on a broken component of each kind
 (tests/test_conformance.py).
 """
 
@@ -204,6 +203,55 @@ def check_scene_matcher(make: Callable[[], SceneMatcher], ortho: np.ndarray, map
                                        f"(expected within {tolerance_px} px)")
     if not _same(res, a.match(frame(), map_window, prior)) or not _same(res, b.match(frame(), map_window, prior)):
         raise ConformanceError("the same frame, map window and prior gave different matches (expected determinism)")
+
+
+def check_metric(fn: Callable[[Any], Any], record: Any) -> None:
+    """A Metric: fn(record) returns a (nested) dict of numbers, as scoring.run_metric accepts
+    it; it leaves the record's telemetry and event tables as they were; called twice it gives
+    the same figures (a pure function of the record). record: a scoring RunRecord (e.g.
+    scoring.load_run(DIR) of a run, or of scoring.synthetic.make_synthetic_run)."""
+    from testbench.core.errors import InputError
+    from testbench.scoring.registry import run_metric
+
+    tables = {"telemetry": record.telemetry.copy(deep=True)}
+    events = getattr(record, "events", None) or {}
+    tables.update({f"events/{k}": v.copy(deep=True) for k, v in events.items() if v is not None})
+    try:
+        first = run_metric("metric", fn, record)
+    except InputError as exc:
+        raise ConformanceError(f"{exc} (expected a dict of floats, nested dicts allowed)") from None
+    if not record.telemetry.equals(tables["telemetry"]) or any(
+            not events[k[len("events/"):]].equals(v) for k, v in tables.items() if k.startswith("events/")):
+        raise ConformanceError("metric changed the run record it was given; expected a pure function of the record")
+    if not _same(first, run_metric("metric", fn, record)):
+        raise ConformanceError("metric gave different figures for the same record (expected a pure function)")
+
+
+def check_dynamics(make: Callable[[], Any], initial: Any, commands: Sequence[Any], dt_s: float) -> None:
+    """A Dynamics: reset(initial) gives a TruthState at t = 0; each step(command, dt_s) gives
+    one dt_s later, every field finite and the attitude quaternion a unit one; two models reset
+    and commanded alike give the same truths (the flight dynamics are deterministic)."""
+    a, b = make(), make()
+    ta, tb = a.reset(initial), b.reset(initial)
+    for k, cmd in enumerate([None, *commands]):
+        if k:
+            ta, tb = a.step(cmd, dt_s), b.step(cmd, dt_s)
+        if not isinstance(ta, TruthState):
+            raise ConformanceError(f"{'reset' if k == 0 else 'step'} must return a TruthState, got {type(ta).__name__}")
+        if abs(ta.t_s - k * dt_s) > 1e-6 * max(1.0, k * dt_s):
+            raise ConformanceError(f"after {k} steps of {dt_s} s the truth is at t={ta.t_s} s, expected {k * dt_s} s")
+        for name in ("pos_ned_m", "vel_ned_mps", "rpy_rad", "omega_eb_b_rps", "omega_ib_b_rps", "f_b_mps2", "wind_ned_mps"):
+            v = np.asarray(getattr(ta, name), float)
+            if v.shape != (3,) or not np.all(np.isfinite(v)):
+                raise ConformanceError(f"t={ta.t_s} s: {name} must be 3 finite numbers, got {v}")
+        scalars = (ta.lat_rad, ta.lon_rad, ta.alt_m, ta.airspeed_mps, ta.height_agl_m, ta.pressure_pa, ta.temperature_k)
+        if not all(np.isfinite(scalars)):
+            raise ConformanceError(f"t={ta.t_s} s: non-finite position, airspeed, height or atmosphere: {scalars}")
+        q = np.asarray(ta.q_nb_wxyz, float)
+        if q.shape != (4,) or not abs(np.linalg.norm(q) - 1.0) < 1e-6:
+            raise ConformanceError(f"t={ta.t_s} s: q_nb_wxyz must be a unit quaternion, got {q}")
+        if not _same(ta, tb):
+            raise ConformanceError(f"two models reset and commanded alike differ at t={ta.t_s} s (expected determinism)")
 
 
 # -- helpers ----------------------------------------------------------------------------------

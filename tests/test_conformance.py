@@ -13,8 +13,8 @@ from testbench.core.interfaces import BuildContext, Controller, Detector, Naviga
 from testbench.core.messages import NavEstimate
 from testbench.dynamics.catalog import aircraft_meta
 from testbench.sensors.fakes import ORIGIN, FakeWorld, make_truth
-from testbench.testing import (ConformanceError, check_controller, check_detector, check_navigator, check_scene_matcher,
-                               check_sensor)
+from testbench.testing import (ConformanceError, check_controller, check_detector, check_dynamics, check_metric,
+                               check_navigator, check_scene_matcher, check_sensor)
 
 CTX = BuildContext("uav0", ("uav0", "uav1"), ORIGIN)
 
@@ -199,3 +199,59 @@ def test_a_matcher_off_the_true_placement_or_claiming_no_uncertainty_fails():
         check_scene_matcher(_HalfPixelOff, ortho, window, prior, expected_offset_px=(6.3, -4.6), tolerance_px=0.25)
     with pytest.raises(ConformanceError, match="positive definite"):
         check_scene_matcher(lambda: _HalfPixelOff(certain=True), ortho, window, prior)
+
+
+def test_the_reference_dynamics_conform():
+    from testbench.core.messages import RotorCommand
+    from testbench.dynamics.jsbsim_adapter import InitialCondition, JSBSimDynamics
+
+    def make():
+        return JSBSimDynamics("tb_quad", ORIGIN, 200.0, vehicle_id="q")
+
+    hover = aircraft_meta("tb_quad")["hover_throttle_norm"]
+    check_dynamics(make, InitialCondition(pos_ned_m=(0.0, 0.0, -50.0)), [RotorCommand(motors=(hover,) * 4)] * 20, 0.05)
+
+
+class _Clockless:
+    """A point mass that forgets to advance its clock."""
+
+    def reset(self, initial):
+        self.t = make_truth(0.0, pos_ned_m=initial.pos_ned_m)
+        return self.t
+
+    def step(self, command, dt_s):
+        return self.t
+
+
+def test_dynamics_whose_time_stands_still_fail():
+    from testbench.dynamics.jsbsim_adapter import InitialCondition
+
+    with pytest.raises(ConformanceError, match="expected 0.05 s"):
+        check_dynamics(_Clockless, InitialCondition(pos_ned_m=(0.0, 0.0, -50.0)), [None] * 3, 0.05)
+
+
+def _record(tmp_path):
+    from testbench.scoring import load_run
+    from testbench.scoring.synthetic import make_synthetic_run
+
+    d = make_synthetic_run(tmp_path, np.random.default_rng(1), n_vehicles=1, duration_s=10.0, rate_hz=5.0,
+                           with_events=True, with_images=False)
+    return load_run(d)
+
+
+def test_a_pure_metric_conforms_and_one_that_edits_the_record_fails(tmp_path):
+    record = _record(tmp_path)
+
+    def climb(rec):
+        return {"max_rate_mps": float((-rec.telemetry["truth_vd_mps"]).max()), "by": {"n": len(rec.telemetry)}}
+
+    check_metric(climb, record)
+
+    def sloppy(rec):
+        rec.telemetry["truth_vd_mps"] -= 0.5  # takes off a "bias" in place
+        return {"max_rate_mps": float((-rec.telemetry["truth_vd_mps"]).max())}
+
+    with pytest.raises(ConformanceError, match="changed the run record"):
+        check_metric(sloppy, _record(tmp_path / "b"))
+    with pytest.raises(ConformanceError, match="expected a number"):
+        check_metric(lambda rec: {"label": "fast"}, record)

@@ -1,8 +1,7 @@
 """The small abstract interfaces of the swappable parts (DESIGN.md, Interfaces).
 
-Each has a reference implementation in its package; sensors, navigators, scene matchers,
-detectors and controllers have a conformance check in `testbench.testing` that users run on
-their own classes.
+Each has a reference implementation in its package and a conformance check in
+`testbench.testing` that users run on their own classes.
 """
 
 from __future__ import annotations
