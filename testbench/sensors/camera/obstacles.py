@@ -6,8 +6,8 @@ the renderer has drawn, and returns the mask of the pixels they cover (not groun
 takes them out of the frame's `valid` and `sky`). Faces are clipped at the near plane and a
 little outside the view, so a camera next to a building sees its wall fill the view, and their
 edges are cut into short segments before the lens model maps them, so that straight walls bend
-as the lens bends the ground under them. `hidden_by_obstacle` says whether a box stands between the camera and a
-point (the vehicles' occlusion, as terrain hides them).
+as the lens bends the ground under them. (The vehicles behind a box are hidden where they are
+drawn: vehicles.draw_vehicles.)
 
 Over relief, the terrain hides the parts of a box behind it, pixel by pixel against the
 renderer's coarse terrain depths (those edges are not smoothed). Not modelled: a box's shadow
@@ -23,7 +23,7 @@ import cv2
 import numpy as np
 
 from testbench.core.camera_geometry import PinholeCamera
-from testbench.core.obstacles import Obstacle, first_hit
+from testbench.core.obstacles import Obstacle
 from testbench.sensors.camera.lens import distort_normalized, undistort_pixels
 from testbench.sensors.camera.vehicles import SUN_NED
 
@@ -32,12 +32,6 @@ _AMBIENT = 0.45
 _EDGE_SEGMENTS = 8  # straight segments per face edge before the lens maps them
 _SHIFT = 4  # sub-pixel bits for cv2 drawing
 _VIEW_MARGIN = 0.1  # side planes this share of the view wider on each side
-
-
-def hidden_by_obstacle(eye_ned_m, point_ned_m, obstacles: Sequence[Obstacle]) -> bool:
-    """Whether a box of `obstacles` cuts the line of sight from eye_ned_m (3,) to point_ned_m
-    (3,), both NED m."""
-    return bool(obstacles) and first_hit(eye_ned_m, point_ned_m, obstacles) is not None
 
 
 def draw_obstacles(img: np.ndarray, camera: PinholeCamera, C: np.ndarray, R_nc: np.ndarray,
@@ -53,7 +47,7 @@ def draw_obstacles(img: np.ndarray, camera: PinholeCamera, C: np.ndarray, R_nc: 
     mask = np.zeros((h, w), np.uint8)
     C = np.asarray(C, float)
     R_cn = np.asarray(R_nc, float).T
-    faces = []  # (distance of the face's centre m, polygon px (k, 2), RGB)
+    faces = []  # (distance of the face's centre m, polygon px (k, 2), RGB, its plane (n_c (3,), d_c m))
     for ob in obstacles:
         for corners_ned, axis, sign in ob.faces_seen_from(C):
             normal = np.zeros(3)
@@ -62,7 +56,7 @@ def draw_obstacles(img: np.ndarray, camera: PinholeCamera, C: np.ndarray, R_nc: 
             poly_c = _clip_to_view((_subdivide(corners_ned) - C) @ R_cn.T, camera, near_m)
             if len(poly_c) < 3 or np.all(poly_c[:, 2] > far_m):
                 continue
-            plane_c = (R_cn @ normal, float((R_cn @ normal) @ (R_cn @ (corners_ned[0] - C))))
+            plane_c = (R_cn @ normal, float(normal @ (corners_ned[0] - C)))  # n_c . X = d_c, camera frame
             faces.append((float(np.linalg.norm(corners_ned.mean(axis=0) - C)), _to_pixels(camera, poly_c),
                           tuple(float(x) for x in np.clip(_ALBEDO_RGB * shade, 0, 255)), plane_c))
     faces.sort(key=lambda f: -f[0])  # far first: nearer faces paint over them
