@@ -10,6 +10,8 @@ Denial windows (scenario time, start_s <= t < end_s):
   drift_ned_mps, at once, or (accel_mps2) ramped up at that acceleration as a carry-off attack
   does so that the receiver's tracking loops and the navigator's velocity gate see no step
   (`spoof_offset`); the receiver reports its usual sigmas (it does not know).
+Obstructions (`sky`, off unless given): the satellites in view (gnss_sky.py) decide whether
+there is a fix at all (at least four) and scale its errors by their geometry (DOP).
 Latency: a fix valid at t is delivered at the first sample tick at or after t + latency_s.
 """
 
@@ -20,13 +22,14 @@ from collections import deque
 from typing import Annotated, Literal, Union
 
 import numpy as np
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from testbench.core.geodesy import ned_to_geodetic
 from testbench.core.interfaces import BuildContext, WorldView
 from testbench.core.messages import GnssFix, TruthState
 from testbench.core.registry import ParamsModel, register
 from testbench.sensors.base import CachedSensor, check_rate
+from testbench.sensors.gnss_sky import SkyModel, dop
 
 
 class Jamming(ParamsModel):
@@ -77,6 +80,33 @@ def spoof_offset(w: Spoofing, t_s: float) -> tuple[np.ndarray, np.ndarray]:
 DenialWindow = Annotated[Union[Jamming, Degraded, Spoofing], Field(discriminator="type")]
 
 
+class SkyParams(ParamsModel):
+    """The satellites the receiver sees (gnss_sky.py): a Walker n_sats / n_planes / phasing
+    constellation at GPS's orbit and inclination_deg, above mask_deg elevation, not cut by
+    world.obstacles or the terrain within ray_m (terrain sampled every terrain_step_m);
+    epoch_s: constellation time at the run's start. Fewer than min_satellites: no fix. With
+    more, the position and velocity errors and the receiver's claims scale, axis by axis
+    (north, east, down), by the DOP over the open sky's at that place and time: the
+    configured sigmas are the open-sky figures."""
+
+    n_sats: int = Field(30, ge=4, le=200)
+    n_planes: int = Field(5, ge=1)
+    phasing: int = Field(2, ge=0)
+    inclination_deg: float = Field(55.0, ge=0, le=180)
+    mask_deg: float = Field(10.0, ge=0, lt=90)
+    min_satellites: int = Field(4, ge=4)
+    epoch_s: float = 0.0
+    ray_m: float = Field(3000.0, gt=0)
+    terrain_step_m: float = Field(10.0, gt=0)
+
+    @model_validator(mode="after")
+    def _planes_divide(self):
+        if self.n_sats % self.n_planes:
+            raise ValueError(f"{self.n_sats} satellites do not split evenly into {self.n_planes} planes "
+                             "(expected n_sats a multiple of n_planes)")
+        return self
+
+
 class GnssParams(ParamsModel):
     """Sigmas are 1-sigma per axis; defaults are of a single-frequency SPS receiver."""
 
@@ -88,6 +118,7 @@ class GnssParams(ParamsModel):
     pos_corr_s: float = Field(60.0, gt=0)
     vel_sigma_mps: float = Field(0.1, ge=0)
     denial: list[DenialWindow] = []
+    sky: SkyParams | None = None
 
 
 def _active(windows, t_s: float):
@@ -109,6 +140,10 @@ class Gnss(CachedSensor):
         self.origin = ctx.origin
         self._corr: np.ndarray | None = None
         self._queue: deque[GnssFix] = deque()
+        sky = params.sky
+        self._sky = None if sky is None else SkyModel(sky.n_sats, sky.n_planes, sky.phasing, sky.inclination_deg,
+                                                      sky.mask_deg, sky.epoch_s, sky.ray_m, sky.terrain_step_m)
+        self.last_satellites: tuple[int, int] | None = None  # (visible, above the mask) at the last sample
 
     def _sample(self, truth: TruthState, world: WorldView, rng: np.random.Generator) -> GnssFix | None:
         p = self.params
@@ -120,8 +155,9 @@ class Gnss(CachedSensor):
         else:
             self._corr = a * self._corr + p.pos_corr_sigma_m * math.sqrt(1.0 - a * a) * z[:3]
         active = _active(p.denial, t)
-        if not any(w.type == "jamming" for w in active):
-            scale = math.prod(w.sigma_scale for w in active if w.type == "degraded")
+        sky_scale = self._sky_scale(truth, world) if self._sky is not None else 1.0
+        if not any(w.type == "jamming" for w in active) and sky_scale is not None:
+            scale = math.prod(w.sigma_scale for w in active if w.type == "degraded") * sky_scale
             pos_sigma = np.array([p.pos_sigma_ne_m, p.pos_sigma_ne_m, p.pos_sigma_d_m])
             err = scale * (pos_sigma * z[3:6] + self._corr)
             vel_err = scale * p.vel_sigma_mps * z[6:9]
@@ -136,9 +172,22 @@ class Gnss(CachedSensor):
             claim = scale * np.sqrt(pos_sigma**2 + p.pos_corr_sigma_m**2)
             self._queue.append(
                 GnssFix(t, float(lat), float(lon), float(alt), np.asarray(truth.vel_ned_mps, float) + vel_err,
-                        claim, np.full(3, scale * p.vel_sigma_mps))
+                        claim, scale * np.full(3, p.vel_sigma_mps))
             )
         out = None
         while self._queue and self._queue[0].t_s + p.latency_s <= t + 1e-9:
             out = self._queue.popleft()  # the newest fix that is due
         return out
+
+    def _sky_scale(self, truth: TruthState, world: WorldView) -> np.ndarray | None:
+        """(3,) error scale (N, E, D) from the satellites in view: each axis's DOP over the open
+        sky's, or None when fewer than params.sky.min_satellites are in view (no fix)."""
+        los = self._sky.lines_of_sight(truth.t_s, truth.lat_rad, truth.lon_rad, truth.alt_m)
+        seen = self._sky.visible(los, truth.pos_ned_m, world)
+        self.last_satellites = (int(seen.sum()), len(los))
+        if seen.sum() < self.params.sky.min_satellites:
+            return None
+        open_sky, here = dop(los), dop(los[seen])
+        if open_sky is None or here is None:
+            return None
+        return np.asarray(here.ned) / np.asarray(open_sky.ned)
