@@ -16,7 +16,7 @@ import pandas as pd
 from testbench.core.rotations import wrap_pi
 from testbench.scoring.phases import telemetry_turning
 from testbench.scoring.record_io import RunRecord, column
-from testbench.scoring.result import NavMetrics, NavSubset, NisStats, SpoofedNav
+from testbench.scoring.result import GnssSkyStats, NavMetrics, NavSubset, NisStats, SpoofedNav
 from testbench.scoring.stats import ChiSquareStats, chi_square_stats, error_stats
 
 MIN_AGL_FOR_PCT_M = 1.0  # below this the vehicle is on the ground: % of AGL is meaningless
@@ -284,4 +284,24 @@ def compute_nav(record: RunRecord) -> NavMetrics | None:
         nis=compute_nis(record),
         lost_at_s=lost_at_s(tel),
         wind_error_mps=None if wind_err is None else error_stats(np.hypot(wind_err[:, 0], wind_err[:, 1])),
+        gnss_sky=gnss_sky_stats(record),
+    )
+
+
+def gnss_sky_stats(record: RunRecord) -> GnssSkyStats | None:
+    """GnssSkyStats of the record's gnss_sky table (all vehicles it holds), None without one."""
+    sky = record.event("gnss_sky")
+    if sky is None:
+        return None
+    seen = column(sky, "satellites_visible")
+    fix = sky["fix"].to_numpy().astype(bool)
+    hdop = column(sky, "hdop")[fix]
+    return GnssSkyStats(
+        satellites_visible_mean=float(np.mean(seen)),
+        satellites_visible_min=int(np.min(seen)),
+        satellites_above_mask_mean=float(np.mean(column(sky, "satellites_above_mask"))),
+        fix_share=float(np.mean(fix)),
+        hdop=error_stats(hdop) if len(hdop) else None,
+        hdop_open_sky_median=float(np.nanmedian(column(sky, "hdop_open_sky"))),
+        samples=int(len(sky)),
     )

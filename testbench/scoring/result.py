@@ -65,6 +65,22 @@ class ControlMetrics(_Section):
 
 
 @dataclass(frozen=True)
+class GnssSkyStats(_Section):
+    """The GNSS receivers' view of the sky (event table gnss_sky, receivers with `sky` only),
+    over their samples: satellites_visible / satellites_above_mask: mean and min counts;
+    fix_share: share of samples with enough satellites for a fix; hdop: ErrorStats of the HDOP
+    over those; hdop_open_sky_median: the open sky's HDOP at the same places and times."""
+
+    satellites_visible_mean: float | None = None
+    satellites_visible_min: int | None = None
+    satellites_above_mask_mean: float | None = None
+    fix_share: float | None = None
+    hdop: ErrorStats | None = None
+    hdop_open_sky_median: float | None = None
+    samples: int = 0
+
+
+@dataclass(frozen=True)
 class NavSubset(_Section):
     """Navigation error over a subset of time (GNSS-denied, smooth, turning).
 
@@ -130,7 +146,8 @@ class NavMetrics(_Section):
     lost_at_s: when the navigator was lost (metrics_nav.lost_at_s: its position error stayed
     beyond a 5.5-sigma bound of its own covariance for 10 s), None if never;
     wind_error_mps: |estimated - true| horizontal wind (m/s; the truth with its turbulence)
-    over the rows where the navigator estimates the wind (with nees "wind", 2 dof), else None.
+    over the rows where the navigator estimates the wind (with nees "wind", 2 dof), else None;
+    gnss_sky: the satellites the receivers saw (GnssSkyStats), None without a sky model.
     """
 
     position_error_m: ErrorStats | None = None
@@ -145,6 +162,7 @@ class NavMetrics(_Section):
     nis: Mapping[str, NisStats] = field(default_factory=dict)
     lost_at_s: float | None = None
     wind_error_mps: ErrorStats | None = None
+    gnss_sky: GnssSkyStats | None = None
 
 
 @dataclass(frozen=True)

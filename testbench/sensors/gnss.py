@@ -84,8 +84,9 @@ class SkyParams(ParamsModel):
     """The satellites the receiver sees (gnss_sky.py): a Walker n_sats / n_planes / phasing
     constellation at GPS's orbit and inclination_deg, above mask_deg elevation, not cut by
     world.obstacles or the terrain within ray_m (terrain sampled every terrain_step_m);
-    epoch_s: constellation time at the run's start. Fewer than min_satellites: no fix. With
-    more, the position and velocity errors and the receiver's claims scale, axis by axis
+    epoch_s: constellation time at the run's start. Fewer than min_satellites, or a geometry
+    whose PDOP exceeds max_pdop (a receiver's PDOP mask; 25 is a common default): no fix. Else
+    the position and velocity errors and the receiver's claims scale, axis by axis
     (north, east, down), by the DOP over the open sky's at that place and time: the
     configured sigmas are the open-sky figures."""
 
@@ -95,6 +96,7 @@ class SkyParams(ParamsModel):
     inclination_deg: float = Field(55.0, ge=0, le=180)
     mask_deg: float = Field(10.0, ge=0, lt=90)
     min_satellites: int = Field(4, ge=4)
+    max_pdop: float = Field(25.0, gt=0)
     epoch_s: float = 0.0
     ray_m: float = Field(3000.0, gt=0)
     terrain_step_m: float = Field(10.0, gt=0)
@@ -144,6 +146,7 @@ class Gnss(CachedSensor):
         self._sky = None if sky is None else SkyModel(sky.n_sats, sky.n_planes, sky.phasing, sky.inclination_deg,
                                                       sky.mask_deg, sky.epoch_s, sky.ray_m, sky.terrain_step_m)
         self.last_satellites: tuple[int, int] | None = None  # (visible, above the mask) at the last sample
+        self._sky_rows: list[dict] = []  # this sample's row for the record (event_rows)
 
     def _sample(self, truth: TruthState, world: WorldView, rng: np.random.Generator) -> GnssFix | None:
         p = self.params
@@ -181,13 +184,26 @@ class Gnss(CachedSensor):
 
     def _sky_scale(self, truth: TruthState, world: WorldView) -> np.ndarray | None:
         """(3,) error scale (N, E, D) from the satellites in view: each axis's DOP over the open
-        sky's, or None when fewer than params.sky.min_satellites are in view (no fix)."""
+        sky's, or None when fewer than params.sky.min_satellites are in view or their PDOP is
+        beyond params.sky.max_pdop (no fix)."""
         los = self._sky.lines_of_sight(truth.t_s, truth.lat_rad, truth.lon_rad, truth.alt_m)
         seen = self._sky.visible(los, truth.pos_ned_m, world)
         self.last_satellites = (int(seen.sum()), len(los))
-        if seen.sum() < self.params.sky.min_satellites:
-            return None
-        open_sky, here = dop(los), dop(los[seen])
+        open_sky = dop(los)
+        here = dop(los[seen]) if seen.sum() >= self.params.sky.min_satellites else None
+        if here is not None and here.pdop > self.params.sky.max_pdop:
+            here = None  # the receiver's PDOP mask: four satellites nearly in one plane
+        nan = float("nan")
+        self._sky_rows = [dict(t_s=float(truth.t_s), satellites_visible=int(seen.sum()), satellites_above_mask=len(los),
+                               hdop=here.hdop if here else nan, vdop=here.vdop if here else nan,
+                               hdop_open_sky=open_sky.hdop if open_sky else nan, fix=here is not None and open_sky is not None)]
         if open_sky is None or here is None:
             return None
         return np.asarray(here.ned) / np.asarray(open_sky.ned)
+
+    def event_rows(self, vehicle_id: str) -> list[tuple[str, dict]]:
+        """The record's rows of the sample just taken, once: table "gnss_sky" (satellites in
+        view, above the mask, the DOP there and in the open sky, whether they made a fix),
+        with `sky` only; [] otherwise."""
+        rows, self._sky_rows = self._sky_rows, []
+        return [("gnss_sky", dict(vehicle_id=vehicle_id, **r)) for r in rows]

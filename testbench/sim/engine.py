@@ -197,6 +197,9 @@ class Engine:
             if view is None:
                 view = TickWorldView(self.world, t_s, v.id, truths, lambda v=v, t_s=t_s: self._render_requests(v, t_s))
             m = slot.sensor.measure(truth, view, slot.rng)
+            if slot.event_rows is not None:
+                for table, row in slot.event_rows(v.id):
+                    self.recorder.event(table, **row)
             if m is None:
                 continue
             if isinstance(m, ImuSample):

@@ -44,6 +44,7 @@ class SensorSlot:
     sensor: Any
     rng: np.random.Generator
     every: int
+    event_rows: Any = None  # sensor.event_rows(vehicle_id) -> [(table, row)], for sensors that record
 
 
 @dataclass
@@ -120,7 +121,8 @@ def build_vehicle(scn: Scenario, v: Vehicle, world: RunWorld, streams: RngStream
         sensor = registry.build("sensor", s.type, s.params, f"{base}.sensors[{name}]", ctx=ctx_sensor)
         sensor.name = name
         every = decimation(float(sensor.rate_hz), P, f"{base}.sensors[{name}].rate_hz")
-        sensors.append(SensorSlot(name, sensor, streams.generator("vehicle", v.id, "sensor", name), every))
+        sensors.append(SensorSlot(name, sensor, streams.generator("vehicle", v.id, "sensor", name), every,
+                                  getattr(sensor, "event_rows", None)))
     # IMUs first at a tick, so the navigator predicts to the tick before it corrects.
     sensors.sort(key=lambda s: 0 if type(s.sensor).__name__.lower().startswith("imu") else 1)
 

@@ -110,3 +110,42 @@ def test_a_pattern_that_does_not_split_into_its_planes_is_refused():
         GnssParams(sky={"n_sats": 24})
     with pytest.raises(pydantic.ValidationError, match="min_satellites"):
         GnssParams(sky={"min_satellites": 3})
+
+
+def test_the_record_gets_one_sky_row_per_sample_and_the_pdop_mask_refuses_a_flat_geometry():
+    """event_rows gives the sample's row once (then nothing until the next sample); a tight
+    PDOP mask turns a fix with a weakened geometry into none, and says so in the row."""
+    wall = Obstacle((-2000.0, 5.0, -200.0), (2000.0, 15.0, 0.0), "east wall")
+    truth = make_truth(0.0, pos_ned_m=(0.0, 0.0, -20.0))
+    gnss = _gnss()
+    assert gnss.measure(truth, FakeWorld(0.0, obstacles=(wall,)), np.random.default_rng(1)) is not None
+    (table, row), = gnss.event_rows("a")
+    assert table == "gnss_sky" and row["vehicle_id"] == "a" and row["fix"]
+    assert (row["satellites_visible"], row["satellites_above_mask"]) == gnss.last_satellites
+    assert row["hdop"] > row["hdop_open_sky"] > 0
+    assert gnss.event_rows("a") == []
+    strict = _gnss(max_pdop=1.5)
+    assert strict.measure(truth, FakeWorld(0.0, obstacles=(wall,)), np.random.default_rng(1)) is None
+    (_, row), = strict.event_rows("a")
+    assert not row["fix"] and row["satellites_visible"] >= 4 and np.isnan(row["hdop"])
+    # Without a sky model the sensor records nothing.
+    plain = Gnss(GnssParams(), ctx=BuildContext("a", ("a",), ORIGIN))
+    plain.measure(truth, FakeWorld(0.0), np.random.default_rng(1))
+    assert plain.event_rows("a") == []
+
+
+def test_sky_statistics_in_the_metrics():
+    import pandas as pd
+
+    from testbench.scoring.metrics_nav import gnss_sky_stats
+    from testbench.scoring.record_io import RunRecord
+
+    rows = pd.DataFrame({"t_s": [0.0, 0.2, 0.4, 0.6], "vehicle_id": ["a"] * 4, "satellites_visible": [8, 5, 3, 6],
+                         "satellites_above_mask": [8, 8, 8, 8], "hdop": [1.0, 2.0, np.nan, 3.0],
+                         "vdop": [1.5, 2.5, np.nan, 4.0], "hdop_open_sky": [1.0, 1.0, 1.1, 1.1],
+                         "fix": [True, True, False, True]})
+    stats = gnss_sky_stats(RunRecord(pd.DataFrame({"t_s": [0.0]}), {}, {"gnss_sky": rows}))
+    assert stats.satellites_visible_mean == pytest.approx(5.5) and stats.satellites_visible_min == 3
+    assert stats.fix_share == pytest.approx(0.75) and stats.hdop.max == pytest.approx(3.0)
+    assert stats.hdop_open_sky_median == pytest.approx(1.05) and stats.samples == 4
+    assert gnss_sky_stats(RunRecord(pd.DataFrame({"t_s": [0.0]}), {}, {})) is None
