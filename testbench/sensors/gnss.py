@@ -11,7 +11,8 @@ Denial windows (scenario time, start_s <= t < end_s):
   does so that the receiver's tracking loops and the navigator's velocity gate see no step
   (`spoof_offset`); the receiver reports its usual sigmas (it does not know).
 Obstructions (`sky`, off unless given): the satellites in view (gnss_sky.py) decide whether
-there is a fix at all (at least four) and scale its errors by their geometry (DOP).
+there is a fix at all (at least four, their PDOP within the receiver's mask) and scale its
+errors by their geometry (DOP); each sample's view is recorded (`event_rows`, table gnss_sky).
 Latency: a fix valid at t is delivered at the first sample tick at or after t + latency_s.
 """
 
