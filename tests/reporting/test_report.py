@@ -145,3 +145,23 @@ def test_empty_panels_say_why_and_warn_nothing(tmp_path):
     assert f"no scene-matching fix: search window off the reference map ({len(ismn)} of {len(ismn)} attempts)" in notes
     assert item.figure.axes[0].get_legend() is None
     assert 'id="ismn"' in html
+
+
+def test_gnss_sky_figure_and_summary_where_a_receiver_had_a_sky_model(tmp_path):
+    """A record with events/gnss_sky.parquet gets the satellites-in-view figure and the
+    nav.gnss_sky figures in its summary; one without has neither."""
+    import pandas as pd
+
+    for with_sky in (True, False):
+        d = make_synthetic_run(tmp_path / str(with_sky), np.random.default_rng(1), n_vehicles=1, duration_s=10.0,
+                               rate_hz=5.0, with_events=False, with_images=False)
+        if with_sky:
+            vid = json.loads((d / "run.json").read_text())["vehicles"][0]["id"]
+            t = np.arange(0.0, 10.0, 0.2)
+            seen = np.where((t > 3) & (t < 6), 3, 8)
+            pd.DataFrame({"vehicle_id": vid, "t_s": t, "satellites_visible": seen, "satellites_above_mask": 8,
+                          "hdop": np.where(seen >= 4, 1.1, np.nan), "vdop": np.where(seen >= 4, 1.6, np.nan),
+                          "hdop_open_sky": 1.0, "fix": seen >= 4}).to_parquet(d / "events" / "gnss_sky.parquet")
+        html = unescape(write_html_report(d).read_text())
+        assert ("GNSS satellites in view" in html) == with_sky
+        assert ("nav.gnss_sky.fix_share" in html) == with_sky
