@@ -237,6 +237,13 @@ class JSBSimDynamics(Dynamics):
                 f"vehicle {self.vehicle_id}: initial altitude {alt - o.alt_m:.1f} m is below the terrain "
                 f"({ground_m - o.alt_m:.1f} m above the origin)"
             )
+        inside = next((ob for ob in self._obstacles if ob.contains(initial.pos_ned_m)), None)
+        if inside is not None:
+            n_m, e_m, d_m = (float(x) for x in initial.pos_ned_m)
+            raise InputError(
+                f"vehicle {self.vehicle_id}: initial position (north {n_m:.1f} m, east {e_m:.1f} m, {-d_m:.1f} m above "
+                f"the origin) lies inside obstacle {inside.name!r}; expected a start outside every world.obstacles box"
+            )
         self._truth = self._read_truth()
         return self._truth
 

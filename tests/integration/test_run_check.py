@@ -53,3 +53,10 @@ def test_check_sets_the_initial_state(tmp_path):
     proc = _run(str(SCENARIOS / "multirotor_waypoints.yaml"), "--check", "--set", "vehicles.quad0.initial.altitude_m=-50")
     assert proc.returncode == 2, proc.stdout + proc.stderr
     assert "below the terrain" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_check_refuses_a_start_inside_an_obstacle(tmp_path):
+    proc = _run(str(SCENARIOS / "multirotor_waypoints.yaml"), "--check", "--set",
+                "world.obstacles=[{name: mast, min_ned_m: [-5, -5, -200], max_ned_m: [5, 5, 0]}]")
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert "inside obstacle 'mast'" in proc.stderr and "Traceback" not in proc.stderr
