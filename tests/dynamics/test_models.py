@@ -108,11 +108,11 @@ def test_flight_below_the_origin_over_low_terrain():
 
 
 def test_flying_into_an_obstacle_ends_the_run_naming_it():
-    """A quad hovering 8 m from a 120 m mast flies on; one whose position comes to lie in a
-    mast ends the run as a collision naming it, as ground contact ends it; a start inside one
-    is bad input."""
+    """A quad hovering 8 m from a 120 m mast flies on; one that falls onto a roof ends the run
+    as a collision naming it, as ground contact ends it; a start inside a box is bad input."""
     from testbench.core.errors import InputError, SimulationAborted
     from testbench.core.interfaces import GeodeticOrigin
+    from testbench.core.messages import RotorCommand
     from testbench.core.obstacles import Obstacle
     from testbench.dynamics.jsbsim_adapter import InitialCondition, JSBSimDynamics
 
@@ -122,11 +122,13 @@ def test_flying_into_an_obstacle_ends_the_run_naming_it():
     clear.reset(InitialCondition(pos_ned_m=(10.0, 0.0, -80.0)))
     clear.advance(None, 200)
     assert clear.truth().height_agl_m > 70.0  # 8 m off the mast: nothing happens
-    # Flying into it: the mast moved onto the hovering quad's position ends the run.
-    clear._obstacles = (Obstacle((8.0, -2.0, -120.0), (12.0, 2.0, 0.0), "mast"),)
-    with pytest.raises(SimulationAborted, match="collision with obstacle 'mast'"):
-        clear.advance(None, 20)
-        clear.truth()
+    # Falling onto a roof 10 m below, motors off, ends the run as a collision with it.
+    roof = Obstacle((-20.0, -20.0, -70.0), (20.0, 20.0, 0.0), "hall")
+    falling = JSBSimDynamics("tb_quad", origin, 200.0, obstacles=(roof,), vehicle_id="q")
+    falling.reset(InitialCondition(pos_ned_m=(0.0, 0.0, -80.0)))
+    with pytest.raises(SimulationAborted, match="collision with obstacle 'hall'"):
+        for _ in range(40):  # 10 m of free fall take about 1.4 s
+            falling.step(RotorCommand(motors=(0.0,) * 4), 0.1)
     # Starting in it is bad input, named before anything flies.
     inside = JSBSimDynamics("tb_quad", origin, 200.0, obstacles=(mast,), vehicle_id="q")
     with pytest.raises(InputError, match="inside obstacle 'mast'"):
