@@ -1,8 +1,10 @@
 """Obstacles of the world: axis-aligned boxes in the local NED frame (buildings, towers, masts).
 
 One geometry serves every part that meets an obstacle: the UWB radio (a box on the line between
-two antennas makes the link NLOS), the cameras (a box is drawn and hides what stands behind it)
-and the dynamics (a vehicle inside a box has collided). The scenario gives them as
+two antennas makes the link NLOS), the GNSS receiver (a box, or the terrain, on the line to a
+satellite hides it), the cameras (a box is drawn and hides what stands behind it) and the
+dynamics (a vehicle inside a box has collided). The terrain's cut of a line of sight
+(`segment_below_terrain`) is here too. The scenario gives them as
 `world.obstacles` (config.schema.ObstacleBox); a box standing on the ground at the origin's
 altitude runs from down = -height_m to down = 0.
 """
@@ -80,6 +82,19 @@ def segment_hits_box(p0: np.ndarray, p1: np.ndarray, box_min: np.ndarray, box_ma
         if t0 > t1:
             return False
     return True
+
+
+def segment_below_terrain(p0: np.ndarray, p1: np.ndarray, terrain_height_m, step_m: float) -> bool:
+    """True if terrain rises above any interior point of the segment, sampled every step_m.
+
+    terrain_height_m(north, east) -> height above the origin (up positive); NED down is -up.
+    """
+    length = float(np.linalg.norm(p1 - p0))
+    n = max(2, int(np.ceil(length / step_m)))
+    s = np.arange(1, n) / n
+    pts = p0[None, :] + s[:, None] * (p1 - p0)[None, :]
+    h = np.asarray(terrain_height_m(pts[:, 0], pts[:, 1]), float)
+    return bool(np.any(h > -pts[:, 2]))
 
 
 def first_hit(p0_ned_m, p1_ned_m, obstacles) -> Obstacle | None:

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from testbench.core.geodesy import OMEGA_IE_RPS, C_en, geodetic_to_ecef
+from testbench.core.obstacles import segment_below_terrain
 
 GPS_ORBIT_RADIUS_M = 26_559_700.0
 GPS_PERIOD_S = 43_082.0  # half a sidereal day
@@ -125,8 +126,6 @@ class SkyModel:
     def visible(self, los_ned: np.ndarray, pos_ned_m, world) -> np.ndarray:
         """(k,) bool: which lines of sight los_ned (k, 3) from pos_ned_m (3,) NED m no box of
         world.obstacles and no terrain (world.terrain_height_m) cuts within ray_m."""
-        from testbench.sensors.uwb_channel import segment_below_terrain
-
         p0 = np.asarray(pos_ned_m, float)
         obstacles = tuple(getattr(world, "obstacles", ()) or ())
         terrain = getattr(world, "terrain_height_m", None)

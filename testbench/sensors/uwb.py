@@ -21,11 +21,11 @@ from testbench.config.schema import ObstacleBox
 from testbench.core.errors import InputError
 from testbench.core.interfaces import BuildContext, WorldView
 from testbench.core.messages import TruthState, UwbRange
-from testbench.core.obstacles import Obstacle
+from testbench.core.obstacles import Obstacle, segment_below_terrain
 from testbench.core.registry import ParamsModel, register
 from testbench.core.rotations import quat_to_dcm
 from testbench.sensors.base import CachedSensor, check_rate
-from testbench.sensors.uwb_channel import ChannelSpec, measure_ranges, segment_below_terrain
+from testbench.sensors.uwb_channel import ChannelSpec, measure_ranges
 
 
 class UwbParams(ParamsModel):

@@ -80,19 +80,3 @@ def nlos_error_cdf(x_m, d_m: float, spec: ChannelSpec, nodes: int = 40):
         else:
             out += wk * stats.expon.cdf(x, scale=mean)
     return out
-
-
-# --- line-of-sight geometry -----------------------------------------------------------------
-
-
-def segment_below_terrain(p0: np.ndarray, p1: np.ndarray, terrain_height_m, step_m: float) -> bool:
-    """True if terrain rises above any interior point of the segment, sampled every step_m.
-
-    terrain_height_m(north, east) -> height above the origin (up positive); NED down is -up.
-    """
-    length = float(np.linalg.norm(p1 - p0))
-    n = max(2, int(np.ceil(length / step_m)))
-    s = np.arange(1, n) / n
-    pts = p0[None, :] + s[:, None] * (p1 - p0)[None, :]
-    h = np.asarray(terrain_height_m(pts[:, 0], pts[:, 1]), float)
-    return bool(np.any(h > -pts[:, 2]))
