@@ -28,6 +28,9 @@ import numpy as np
 from testbench.core.interfaces import Controller, Detector, Navigator, SceneMatcher, Sensor
 from testbench.core.messages import NavEstimate, TruthState
 
+# Each check imports the parts of the package it needs when it runs (fakes, detection types,
+# scoring), so that importing this module to check one sensor loads no matcher or scorer.
+
 
 class ConformanceError(AssertionError):
     """A component breaks a rule of its interface (the message names the rule)."""
