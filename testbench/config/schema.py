@@ -14,6 +14,8 @@ from typing import Any, Literal
 import pydantic
 from pydantic import Field, field_validator, model_validator
 
+from testbench.core.obstacles import Obstacle
+
 _CFG = pydantic.ConfigDict(extra="forbid", frozen=True)
 
 
@@ -111,6 +113,11 @@ class ObstacleBox(pydantic.BaseModel):
     name: str | None = None
     min_ned_m: tuple[float, float, float]
     max_ned_m: tuple[float, float, float]
+
+    def obstacle(self, default_name: str) -> Obstacle:
+        """The box as the geometry every part uses (core.obstacles.Obstacle), named
+        default_name when the scenario gives it no name."""
+        return Obstacle(tuple(self.min_ned_m), tuple(self.max_ned_m), self.name or default_name)
 
     @model_validator(mode="after")
     def _min_below_max(self):

@@ -21,7 +21,7 @@ from testbench.config.schema import ObstacleBox
 from testbench.core.errors import InputError
 from testbench.core.interfaces import BuildContext, WorldView
 from testbench.core.messages import TruthState, UwbRange
-from testbench.core.obstacles import Obstacle, segment_below_terrain
+from testbench.core.obstacles import segment_below_terrain
 from testbench.core.registry import ParamsModel, register
 from testbench.core.rotations import quat_to_dcm
 from testbench.sensors.base import CachedSensor, check_rate
@@ -89,8 +89,7 @@ class Uwb(CachedSensor):
         self.self_id = ctx.vehicle_id
         self.spec = params.channel()
         self.lever = np.asarray(params.lever_arm_b_m, float)
-        self.obstacles = [Obstacle(tuple(o.min_ned_m), tuple(o.max_ned_m), o.name or f"uwb obstacle {i}")
-                          for i, o in enumerate(params.obstacles, start=1)]
+        self.obstacles = [o.obstacle(f"uwb obstacle {i}") for i, o in enumerate(params.obstacles, start=1)]
         self.last_nlos: bool | None = None  # truth of the last link, for diagnostics only
 
     def transmitter(self, t_s: float) -> str:

@@ -21,7 +21,6 @@ import numpy as np
 from testbench.config.schema import World
 from testbench.core.interfaces import GeodeticOrigin
 from testbench.core.messages import TruthState
-from testbench.core.obstacles import Obstacle
 from testbench.core.rng import RngStreams
 from testbench.world.magnetic import NT_TO_T, CrustalAnomaly
 
@@ -50,8 +49,7 @@ class RunWorld:
         self._reference = None
         self._elevation = None
         self._reference_elevation = None
-        self.obstacles = tuple(Obstacle(tuple(o.min_ned_m), tuple(o.max_ned_m), o.name or f"obstacle {i}")
-                               for i, o in enumerate(world.obstacles, start=1))
+        self.obstacles = tuple(o.obstacle(f"obstacle {i}") for i, o in enumerate(world.obstacles, start=1))
         self.looks: dict[str, Any] = {}  # vehicle id -> sim.appearance.Look (set by the runner)
         self._imagery_windows: dict[int, Any] = {}
         self._elevation_window = None
