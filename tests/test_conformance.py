@@ -23,7 +23,7 @@ def _sensor(kind: str, **params) -> Sensor:
     return registry.build("sensor", kind, params, f"test.{kind}", ctx=CTX)
 
 
-@pytest.mark.parametrize("kind", ["imu", "barometer", "magnetometer", "gnss"])
+@pytest.mark.parametrize("kind", ["imu", "barometer", "magnetometer", "gnss", "radar_altimeter"])
 def test_reference_sensors_conform(kind):
     check_sensor(lambda: _sensor(kind))
 

@@ -76,6 +76,16 @@ class BaroSample:
 
 
 @dataclass(frozen=True, slots=True)
+class RadarAltSample:
+    """Radar altimeter output: the range (m) to the nearest ground inside its beam, measured
+    from the antenna (core.radar_beam); beam_half_angle_rad tells the user which beam that was."""
+
+    t_s: float
+    range_m: float
+    beam_half_angle_rad: float
+
+
+@dataclass(frozen=True, slots=True)
 class GnssFix:
     """GNSS receiver output, valid at t_s (the time of validity, before latency).
 

@@ -1,0 +1,75 @@
+"""core.radar_beam: the nearest ground in a radar altimeter's beam, against geometry worked by hand."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from testbench.core.radar_beam import beam_rays_b, first_return_m, ray_ranges_m
+from testbench.core.rotations import euler_to_dcm
+
+
+def _flat(height_m: float):
+    return lambda n, e: np.full(np.broadcast(np.asarray(n), np.asarray(e)).shape, height_m)
+
+
+def test_rays_are_unit_and_fill_the_cone():
+    rays = beam_rays_b(math.radians(20.0), rings=2, azimuths=8)
+    assert rays.shape == (17, 3)
+    np.testing.assert_allclose(np.linalg.norm(rays, axis=1), 1.0)
+    off_axis_deg = np.degrees(np.arccos(rays[:, 2]))
+    np.testing.assert_allclose(sorted(set(np.round(off_axis_deg, 9))), [0.0, 10.0, 20.0], atol=1e-9)
+    assert beam_rays_b(0.0).shape == (1, 3)
+
+
+def test_pencil_beam_over_flat_ground_reads_height_over_cosine_of_tilt():
+    antenna = np.array([0.0, 0.0, -300.0])  # 300 m above the origin; ground 20 m up
+    for roll_deg in (0.0, 10.0, 25.0):
+        R_nb = euler_to_dcm(np.radians([roll_deg, 0.0, 30.0]))
+        r = first_return_m(antenna, R_nb, beam_rays_b(0.0), _flat(20.0))
+        assert math.isclose(float(r), 280.0 / math.cos(math.radians(roll_deg)), rel_tol=1e-12)
+
+
+def test_wide_beam_returns_the_vertical_when_a_ray_points_straight_down():
+    # Rolled 10 deg: the inner ring's ray 10 deg to the other side points straight down.
+    R_nb = euler_to_dcm(np.radians([10.0, 0.0, 0.0]))
+    r = first_return_m(np.array([0.0, 0.0, -300.0]), R_nb, beam_rays_b(math.radians(20.0)), _flat(0.0))
+    assert math.isclose(float(r), 300.0, rel_tol=1e-12)
+
+
+def test_wide_beam_over_a_slope_reads_less_than_the_vertical_clearance():
+    slope = 0.3  # the ground rises 0.3 m per metre north
+
+    def ramp(n, e):
+        return slope * np.asarray(n, float) + 0.0 * np.asarray(e, float)
+
+    antenna = np.array([0.0, 0.0, -300.0])
+    level = np.eye(3)
+    vertical = float(first_return_m(antenna, level, beam_rays_b(0.0), ramp))
+    nearest = float(first_return_m(antenna, level, beam_rays_b(math.radians(20.0)), ramp))
+    assert math.isclose(vertical, 300.0, rel_tol=1e-12)
+    perpendicular = 300.0 * math.cos(math.atan(slope))  # the true nearest point: 16.7 deg off vertical
+    assert perpendicular - 1e-6 <= nearest < vertical - 5.0
+    # The ray tilted north by 20 deg, solved exactly: 300 = t cos20 + 0.3 t sin20.
+    d = np.array([[math.sin(math.radians(20.0)), 0.0, math.cos(math.radians(20.0))]])
+    t = float(ray_ranges_m(antenna, d, ramp, iterations=30)[0])
+    assert math.isclose(t, 300.0 / (math.cos(math.radians(20.0)) + slope * math.sin(math.radians(20.0))), rel_tol=1e-9)
+
+
+def test_ground_above_the_antenna_gives_no_return():
+    r = first_return_m(np.array([0.0, 0.0, -100.0]), np.eye(3), beam_rays_b(math.radians(20.0)), _flat(150.0))
+    assert np.isinf(r)
+
+
+def test_batched_antennas_match_one_by_one():
+    rng = np.random.default_rng(3)
+    pos = np.c_[rng.uniform(-50, 50, (4, 5, 2)), np.full((4, 5, 1), -250.0)]
+
+    def hills(n, e):
+        return 20.0 * np.sin(np.asarray(n) / 70.0) * np.cos(np.asarray(e) / 90.0)
+
+    rays, R = beam_rays_b(math.radians(15.0)), euler_to_dcm(np.radians([5.0, -3.0, 40.0]))
+    batch = first_return_m(pos, R, rays, hills)
+    one = np.array([[first_return_m(pos[i, j], R, rays, hills) for j in range(5)] for i in range(4)])
+    np.testing.assert_allclose(batch, one, rtol=0, atol=0)
