@@ -101,6 +101,19 @@ class MagneticAnomaly(pydantic.BaseModel):
     waves: int = Field(default=256, ge=16, le=4096)
 
 
+class DemError(pydantic.BaseModel):
+    """The onboard DEM's error against the world's terrain (world/dem_error.py): a smooth
+    random field of RMS rms_m in patches about correlation_m across, added to what the vehicles
+    carry (world.reference_elevation, else world.elevation), never to the ground the sensors
+    see. seed: the field's own seed (the same onboard DEM in every run); None draws it from the
+    run's seed."""
+
+    model_config = _CFG
+    rms_m: float = Field(ge=0.0, le=1000.0)
+    correlation_m: float = Field(gt=0.0, le=100_000.0)
+    seed: int | None = Field(default=None, ge=0)
+
+
 class ObstacleBox(pydantic.BaseModel):
     """A box-shaped obstacle (building, tower, mast): axis-aligned in the local NED frame,
     min_ned_m and max_ned_m its corners [north, east, down] in metres from the origin (down
@@ -130,9 +143,10 @@ class ObstacleBox(pydantic.BaseModel):
 
 class World(pydantic.BaseModel):
     """The world: origin, what cameras render (imagery), what vehicles carry (reference_map),
-    terrain (elevation), obstacles (boxes: ObstacleBox), the air mass (wind; None: calm air), the crust's magnetic anomaly
-    (None: the magnetometers sense the WMM the vehicles carry, exactly). Maps are GeoTIFF
-    paths (with ${VAR} expansion) or `procedural:` specs; None means no imagery / flat ground."""
+    terrain (elevation), the terrain model vehicles carry (reference_elevation, default the terrain; its error
+    reference_elevation_error: DemError, None: none), obstacles (boxes: ObstacleBox), the air mass (wind; None: calm
+    air), the crust's magnetic anomaly (None: the magnetometers sense the WMM the vehicles carry, exactly). Maps are
+    GeoTIFF paths (with ${VAR} expansion) or `procedural:` specs; None means no imagery / flat ground."""
 
     model_config = _CFG
     origin: Origin
@@ -140,6 +154,7 @@ class World(pydantic.BaseModel):
     reference_map: str | None = None
     elevation: str | None = None
     reference_elevation: str | None = None
+    reference_elevation_error: DemError | None = None
     obstacles: list[ObstacleBox] = Field(default_factory=list)
     wind: Wind | None = None
     magnetic_anomaly: MagneticAnomaly | None = None

@@ -205,6 +205,7 @@ def _run_info(loaded: LoadedScenario, engine: Engine, world: RunWorld, result: E
         "phases": scn.phases.model_dump(),
         "origin": scn.world.origin.model_dump(),
         "same_raster": world.same_raster,
+        "same_dem": world.same_dem,
         "world": scn.world.model_dump(exclude={"origin"}),
         "thresholds": {k: v.model_dump(exclude_none=True) for k, v in scn.thresholds.items()},
         "gnss_denied_windows": {v.id: _gnss_denied_windows(v.spec, result.sim_time_s) for v in engine.vehicles},

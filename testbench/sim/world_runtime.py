@@ -60,6 +60,15 @@ class RunWorld:
         w = self.spec
         return w.imagery is not None and (w.reference_map is None or w.reference_map == w.imagery)
 
+    @property
+    def same_dem(self) -> bool:
+        """True when vehicles carry the very terrain model the world is made of, without an
+        error (world.reference_elevation_error): terrain-aided navigation then meets no DEM
+        error but what its dem_sigma_m says, an optimistic test."""
+        w = self.spec
+        no_error = w.reference_elevation_error is None or w.reference_elevation_error.rms_m == 0
+        return w.elevation is not None and no_error and (w.reference_elevation is None or w.reference_elevation == w.elevation)
+
     def imagery(self):
         """MapSource of what cameras see (None if the scenario has no imagery)."""
         if self._imagery is None and self.spec.imagery:
@@ -101,13 +110,27 @@ class RunWorld:
         return self._elevation
 
     def reference_elevation(self):
-        """Terrain model a vehicle carries (defaults to the truth terrain)."""
+        """Terrain model a vehicle carries (defaults to the truth terrain), with its error
+        (world.reference_elevation_error) when the scenario gives one."""
         if self._reference_elevation is None:
             spec = self.spec.reference_elevation or self.spec.elevation
+            err = self.spec.reference_elevation_error
             if spec:
                 from testbench.world import open_elevation
 
                 self._reference_elevation = open_elevation(spec, self.origin, self.cache_dir)
+            if err is not None and err.rms_m > 0:
+                from testbench.world.dem_error import ErroredElevation
+                from testbench.world.elevation import FlatElevation
+
+                if err.seed is not None:
+                    rng = RngStreams(err.seed).generator("world", "dem_error")
+                elif self._streams is not None:
+                    rng = self._streams.generator("world", "dem_error")
+                else:
+                    raise ValueError("world.reference_elevation_error has no seed and this RunWorld was given no run streams")
+                base = self._reference_elevation if self._reference_elevation is not None else FlatElevation(0.0)
+                self._reference_elevation = ErroredElevation(base, err.rms_m, err.correlation_m, rng)
         return self._reference_elevation
 
     # Cameras ask for imagery under their footprint at every frame. Reading a GeoTIFF window
