@@ -212,7 +212,8 @@ class InsEkfNavigator(Navigator):
             # (A diagonal below 0.99 lam_min I keeps the remainder positive definite.)
             white = cov - np.diag(np.minimum(self.fix_error_sigma_ned_m**2, 0.99 * lam_min))
             y, H, R = meas.position_ned(ekf, measurement.pos_ned_m, white, self.ctx.origin, M,
-                                        appearance_gain=self.appearance_gain(measurement.quality))
+                                        appearance_gain=self.appearance_gain(measurement.quality),
+                                        vel_lag_s=measurement.vel_lag_s)
             kind = f"position_fix:{measurement.source}"
             info, self._last_fix_ok_t_s = self._update_or_reset(
                 kind, t, y, H, R, self._last_fix_ok_t_s, self._last_gnss_ok_t_s, p.fix_reset_after_s)

@@ -553,6 +553,32 @@ def test_position_fix_declaring_attitude_coupling_is_fused_with_it():
         assert info.accepted
 
 
+def test_position_fix_with_a_velocity_lag_is_fused_with_it():
+    """A fix carried over its last tau seconds on the filter's own velocity (terrain-aided
+    navigation: PositionFix.vel_lag_s) holds tau (v_est - v_true): H_v = -tau, so the innovation
+    covariance gains tau^2 P_vv, and the update moves the velocity against the position's
+    residual; without the lag the velocity moves only through the cross-covariance."""
+    from testbench.navigation.ins.error_model import IFX, IP, IV
+
+    true_ned = geodesy.geodetic_to_ned(LAT0, LON0, H0, ORIGIN.lat_rad, ORIGIN.lon_rad, ORIGIN.alt_m)
+    cov = np.diag([4.0, 4.0, 1.0])
+    nav = _converged_static_nav()
+    P = nav.covariance()
+    info = nav.correct(PositionFix(10.0, true_ned + np.array([6.0, 0.0, 0.0]), cov, 0.9, source="tan", vel_lag_s=10.0))
+    H = np.zeros((3, P.shape[0]))
+    H[:, IP] = np.eye(3)  # the vehicle sits at the origin: origin and local NED agree
+    H[:, IFX] = np.eye(3)
+    H[:, IV] = -10.0 * np.eye(3)
+    R = cov - np.diag(nav.fix_error_sigma_ned_m**2)
+    np.testing.assert_allclose(info.innovation_cov, H @ P @ H.T + R, rtol=1e-6, atol=1e-9)
+    # A fix 6 m north of where the filter is: part of it is read as the filter's velocity being
+    # too fast northward (the fix was carried forward on that velocity), so v_north falls.
+    lagged = nav.estimate().vel_ned_mps[0]
+    plain = _converged_static_nav()
+    plain.correct(PositionFix(10.0, true_ned + np.array([6.0, 0.0, 0.0]), cov, 0.9, source="tan"))
+    assert lagged < plain.estimate().vel_ned_mps[0] - 0.01
+
+
 def test_sampled_alignment_error_is_drawn_from_p0():
     """initial_error 'sampled': the starting state is displaced by a draw from the filter's own
     P0 (position, velocity, attitude), so that a Monte Carlo NEES test starts consistent;
