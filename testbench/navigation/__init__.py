@@ -1,9 +1,9 @@
-"""Navigation: INS/EKF (ins), scene matching (ismn), relative navigation (relative), and the
-aids that connect them to the engine.
+"""Navigation: INS/EKF (ins), scene matching (ismn), terrain-aided navigation (tan), relative
+navigation (relative), and the aids that connect them to the engine.
 
 Importing this package registers the built-in navigators ("truth_passthrough", "ins_ekf"),
 matchers ("ncc", "phase", "orb", "sift"), detectors ("led", "oracle", "cnn") and aids
-("ismn", "relnav").
+("ismn", "tan", "relnav").
 """
 
-from testbench.navigation import ins, ismn, ismn_aid, passthrough, relative  # noqa: F401
+from testbench.navigation import ins, ismn, ismn_aid, passthrough, relative, tan, tan_aid  # noqa: F401

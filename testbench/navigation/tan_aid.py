@@ -1,0 +1,268 @@
+"""The terrain-aided navigation aid "tan": radar altimeter ranges + the INS estimate + the DEM the
+vehicle carries -> position fixes for the navigator.
+
+Ranges are gathered over a window (window_s) along the track the INS dead-reckons from the
+window's start (its estimated velocity integrated, so that corrections the filter makes
+meanwhile do not bend the track); a point-mass filter (tan.pmf) finds where on the onboard
+DEM that track's terrain profile lies. At the window's end the density becomes one fix, at
+the dead-reckoned end point moved by the density's mean offset, with its covariance, when the
+terrain said enough: the profile rough enough (min_roughness_m), the density single-peaked
+(min_mass) and narrow (max_fix_sigma_m), not pressed against the grid's edge. The next window
+starts afresh from the filter's estimate then, so the fixes share no ranges (each is a new
+look at other ground), the same contract as a scene-matching fix.
+
+Each window is one row of events/tan.parquet (its truth columns filled by the engine: this
+module never sees truth), with the fix and, for scoring the density itself, the offset placed
+on the dead-reckoned track at the ranges' mean time (mean_north_m, mean_east_m: the fix less
+its velocity lag). Over flat ground TAN cannot fix: the rows then say "flat".
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+import pydantic
+
+from testbench.core.errors import InputError
+from testbench.core.interfaces import BuildContext, NavigationAid
+from testbench.core.messages import NavEstimate, PositionFix, RadarAltSample
+from testbench.core.registry import ParamsModel, register
+from testbench.core.rotations import quat_to_dcm
+from testbench.navigation.tan.pmf import TerrainPmf
+from testbench.world.raster import LocalRaster, sample_bilinear
+
+_NAN = float("nan")
+
+
+@dataclass
+class TanAttempt:
+    """One window's outcome, turned into a recorder row after the navigator has seen the fix."""
+
+    t_s: float
+    fix: PositionFix | None
+    mean_ne_m: tuple[float, float]
+    samples: int
+    roughness_m: float
+    mass_in_ellipse: float
+    edge_mass: float
+    reason: str
+    outliers: int = 0
+    lag_s: float = _NAN
+
+    def event_rows(self, vehicle_id: str) -> list[tuple[str, dict]]:
+        fix = self.fix
+        cov = fix.cov_ned_m2 if fix is not None else None
+        row = dict(
+            t_s=self.t_s, vehicle_id=vehicle_id, fix=fix is not None, accepted=None,
+            fix_north_m=float(fix.pos_ned_m[0]) if fix is not None else _NAN,
+            fix_east_m=float(fix.pos_ned_m[1]) if fix is not None else _NAN,
+            fix_down_m=float(fix.pos_ned_m[2]) if fix is not None else _NAN,
+            sigma_north_m=math.sqrt(cov[0, 0]) if cov is not None else _NAN,
+            sigma_east_m=math.sqrt(cov[1, 1]) if cov is not None else _NAN,
+            sigma_down_m=math.sqrt(cov[2, 2]) if cov is not None else _NAN,
+            cov_ne_m2=float(cov[0, 1]) if cov is not None else _NAN,
+            vel_lag_s=float(self.lag_s) if fix is not None else _NAN,
+            mean_north_m=float(self.mean_ne_m[0]), mean_east_m=float(self.mean_ne_m[1]),
+            samples=int(self.samples), roughness_m=float(self.roughness_m),
+            mass_in_ellipse=float(self.mass_in_ellipse), edge_mass=float(self.edge_mass), outliers=int(self.outliers),
+            reason=self.reason,
+            truth_north_m=_NAN, truth_east_m=_NAN, truth_down_m=_NAN, truth_height_agl_m=_NAN,
+        )
+        return [("tan", row)]
+
+
+@dataclass
+class _Window:
+    """The ranges gathered since the window started: the point-mass filter over the
+    dead-reckoned track, that track's end (NE, m), the estimated velocity last used."""
+
+    t0_s: float
+    pmf: TerrainPmf
+    dem: LocalRaster
+    dr_ne_m: np.ndarray
+    t_last_s: float
+    v_last_ne_mps: np.ndarray
+    terrain_m: list[float] = field(default_factory=list)
+    times_s: list[float] = field(default_factory=list)
+    track_ne_m: list[np.ndarray] = field(default_factory=list)
+
+
+@register("aid", "tan")
+class TanAid(NavigationAid):
+    """Terrain-aided position fixes from one radar altimeter and the onboard DEM.
+
+    Params: sensor (the radar altimeter's name); window_s (ranges per fix, s); every_n (use one
+    range in N); cells (grid points per horizontal axis, odd); n_sigma and min_half_width_m
+    (grid half width: n_sigma of the navigator's horizontal sigmas, at least this);
+    dem_sigma_m, dem_correlation_m (the onboard DEM's error against the ground the radar sees,
+    1 sigma, m, and the size of its patches, m; 0: white); outlier_sigmas (a range off the
+    model by more is dropped: trees, masts, water); min_samples, min_roughness_m (the window's terrain
+    profile: its standard deviation, m), min_mass, max_edge_mass, max_fix_sigma_m (the
+    density's acceptance); fix_sigma_floor_m (added per axis to the fix's claim, m);
+    max_tilt_deg (ranges taken banked or pitched beyond it are skipped: the beam looks sideways);
+    max_widen (after a window pressed against the grid's edge the next grid is twice as wide,
+    up to this factor, until a fix); velocity_lag: "model" hands the fix's velocity lag to the
+    navigator (PositionFix.vel_lag_s, which ins_ekf fuses), "inflate" adds the lag times the
+    navigator's velocity sigma to the fix's claim instead, for a navigator that ignores
+    vel_lag_s (20 runs of tan_radalt_300m: see docs/measurements.md, terrain-aided navigation).
+    """
+
+    class Params(ParamsModel):
+        sensor: str = "radar_altimeter"
+        window_s: float = pydantic.Field(20.0, gt=0)
+        every_n: int = pydantic.Field(2, ge=1)
+        cells: int = pydantic.Field(61, ge=5)
+        n_sigma: float = pydantic.Field(4.0, gt=0)
+        min_half_width_m: float = pydantic.Field(60.0, gt=0)
+        dem_sigma_m: float = pydantic.Field(1.0, ge=0)
+        dem_correlation_m: float = pydantic.Field(0.0, ge=0)
+        outlier_sigmas: float = pydantic.Field(4.0, gt=0)
+        min_samples: int = pydantic.Field(20, ge=1)
+        min_roughness_m: float = pydantic.Field(3.0, ge=0)
+        min_mass: float = pydantic.Field(0.95, ge=0, le=1)
+        max_edge_mass: float = pydantic.Field(0.01, ge=0, le=1)
+        max_fix_sigma_m: float = pydantic.Field(60.0, gt=0)
+        fix_sigma_floor_m: float = pydantic.Field(1.0, ge=0)
+        max_tilt_deg: float = pydantic.Field(35.0, gt=0, le=90)
+        max_widen: float = pydantic.Field(8.0, ge=1)
+        velocity_lag: Literal["model", "inflate"] = "model"
+
+        @pydantic.field_validator("cells")
+        @classmethod
+        def _odd(cls, v: int) -> int:
+            if v % 2 == 0:
+                raise ValueError(f"must be odd (the grid holds the zero offset), got {v}")
+            return v
+
+    def __init__(self, params: Params, *, ctx: BuildContext, sensors: dict, onboard: dict, **_: Any):
+        self.params = params
+        where = f"vehicles[{ctx.vehicle_id}].aids[tan]"
+        sensor = sensors.get(params.sensor)
+        if sensor is None:
+            raise InputError(f"{where}.params.sensor: no sensor named {params.sensor!r} on this vehicle "
+                             f"(have: {', '.join(sensors) or 'none'})")
+        if getattr(sensor, "rays_b", None) is None:
+            raise InputError(f"{where}.params.sensor: sensor {params.sensor!r} is not a radar altimeter")
+        # The altimeter's beam and noise are its datasheet: the vehicle knows them.
+        self.sensor_name = params.sensor
+        self.rays_b = np.asarray(sensor.rays_b, float)
+        sp = sensor.params
+        self._noise_m, self._noise_fraction = float(sp.noise_m), float(sp.noise_fraction)
+        self._lever_b = np.asarray(sp.lever_arm_b_m, float)
+        self._beam_tan = math.tan(float(sensor.beam_half_angle_rad))
+        self.dem = onboard["reference_elevation"]()
+        if self.dem is None:
+            raise InputError(f"{where}: terrain-aided navigation needs a DEM onboard: world.reference_elevation "
+                             "or world.elevation (a GeoTIFF or a procedural: world)")
+        self._dem_gsd_m = float(getattr(self.dem, "native_gsd_m", None) or 10.0)
+        self._n = 0
+        self._win: _Window | None = None
+        self._widen = 1.0
+
+    def accepts(self, measurement: Any) -> bool:
+        return isinstance(measurement, RadarAltSample)
+
+    # -- the window -------------------------------------------------------------------------
+
+    def _start(self, t_s: float, est: NavEstimate, range_m: float) -> _Window:
+        p = self.params
+        cov = np.asarray(est.cov_pos_ned_m2, float)
+        sigma_h = math.sqrt(max(float(np.linalg.eigvalsh(cov[:2, :2]).max()), 1e-6))
+        # Widened after a window whose density pressed against the grid's edge: the filter
+        # claimed less than it erred by, and the next search must reach where it is.
+        half = max(p.n_sigma * sigma_h, p.min_half_width_m) * self._widen
+        pmf = TerrainPmf(half, p.cells, p.dem_sigma_m, p.dem_correlation_m)
+        # The DEM under everything the window can see: the grid, the track ahead, the beam.
+        v_ne = np.asarray(est.vel_ned_mps, float)[:2]
+        reach = half + float(np.hypot(*v_ne)) * p.window_s * 1.2 + range_m * (self._beam_tan + 0.2) + 3.0 * self._dem_gsd_m
+        n0, e0 = (float(x) for x in est.pos_ned_m[:2])
+        dem = self.dem.read_local(n0 - reach, n0 + reach, e0 - reach, e0 + reach, self._dem_gsd_m)
+        return _Window(t_s, pmf, dem, np.array([n0, e0]), t_s, v_ne.copy())
+
+    def process(self, measurement: Any, estimate: NavEstimate) -> tuple[list, TanAttempt | None]:
+        self._n += 1
+        if (self._n - 1) % self.params.every_n:
+            return [], None
+        p = self.params
+        t = float(measurement.t_s)
+        r = float(measurement.range_m)
+        roll, pitch = (abs(float(x)) for x in estimate.rpy_rad[:2])
+        if max(roll, pitch) > math.radians(p.max_tilt_deg):
+            return [], None
+        if self._win is None:
+            self._win = self._start(t, estimate, r)
+        w = self._win
+        v_ne = np.asarray(estimate.vel_ned_mps, float)[:2]
+        # Dead reckoning on the estimated velocity (trapezoid): a position correction inside the
+        # window moves the filter, not this track.
+        w.dr_ne_m = w.dr_ne_m + 0.5 * (w.v_last_ne_mps + v_ne) * (t - w.t_last_s)
+        w.t_last_s, w.v_last_ne_mps = t, v_ne
+        R_nb = quat_to_dcm(estimate.q_nb_wxyz)
+        d_m = float(estimate.pos_ned_m[2])
+        antenna = np.array([w.dr_ne_m[0], w.dr_ne_m[1], d_m]) + R_nb @ self._lever_b
+        sigma = math.hypot(self._noise_m, self._noise_fraction * r)  # the altimeter's own; the DEM's is the pmf's
+        dem = w.dem
+
+        def height_m(north_m, east_m):
+            v, ok = sample_bilinear(dem, north_m, east_m)
+            return np.where(ok, v, np.nan)
+
+        w.pmf.update(antenna, R_nb, self.rays_b, r, sigma, height_m)
+        w.terrain_m.append(-antenna[2] - r)  # the terrain's height under the track, as ranged
+        w.times_s.append(t)
+        w.track_ne_m.append(w.dr_ne_m.copy())
+        if t - w.t0_s + 1e-9 < p.window_s:
+            return [], None
+        self._win = None
+        fix, attempt = self._finish(w, t, d_m, estimate)
+        return ([fix] if fix is not None else []), attempt
+
+    def _finish(self, w: _Window, t_s: float, d_m: float, est: NavEstimate) -> tuple[PositionFix | None, TanAttempt]:
+        """The window's fix (or None) and its attempt row; d_m, est: the estimate at t_s."""
+        p = self.params
+        n = w.pmf.updates
+        roughness = float(np.std(w.terrain_m)) if w.terrain_m else 0.0
+        try:
+            post = w.pmf.posterior(p.outlier_sigmas)
+        except ValueError:  # the whole search region off the onboard DEM
+            return None, TanAttempt(t_s, None, (_NAN, _NAN), n, roughness, _NAN, _NAN, "off the DEM")
+        sig = math.sqrt(max(float(np.linalg.eigvalsh(post.cov_ne_m2).max()), 0.0))
+        reason = ""
+        if n < p.min_samples:
+            reason = "few ranges"
+        elif roughness < p.min_roughness_m:
+            reason = "flat"
+        elif post.edge_mass > p.max_edge_mass:
+            reason = "at grid edge"
+        elif post.mass_in_ellipse < p.min_mass:
+            reason = "ambiguous"
+        elif sig > p.max_fix_sigma_m:
+            reason = "wide"
+        self._widen = min(2.0 * self._widen, p.max_widen) if reason == "at grid edge" else 1.0
+        if reason:
+            return None, TanAttempt(t_s, None, (_NAN, _NAN), n, roughness, post.mass_in_ellipse, post.edge_mass, reason,
+                                    post.outliers)
+        # The offset found is the track's over the window, which a velocity error tilts: it
+        # holds at the ranges' mean time, and the dead-reckoned track carried it from there to
+        # t_s on the estimated velocity (PositionFix.vel_lag_s: the navigator fuses that lag).
+        lag_s = t_s - float(np.mean(w.times_s))
+        # The same velocity error bends the track about that mean: the ranges lie up to
+        # sigma_v T / 2 off the constant offset the density assumes, a spread of sigma_v T / sqrt(12).
+        cov_v = np.asarray(est.cov_vel_ned_m2s2, float)[:2, :2]
+        shape = float(np.linalg.eigvalsh(cov_v).max()) * (t_s - w.t0_s) ** 2 / 12.0
+        floor = p.fix_sigma_floor_m**2
+        cov = np.zeros((3, 3))
+        lag_var = 0.0 if p.velocity_lag == "model" else float(np.linalg.eigvalsh(cov_v).max()) * lag_s**2
+        cov[:2, :2] = post.cov_ne_m2 + np.eye(2) * (shape + floor + lag_var)
+        cov[2, 2] = post.var_dh_m2 + floor
+        pos = np.array([w.dr_ne_m[0] + post.mean_ne_m[0], w.dr_ne_m[1] + post.mean_ne_m[1], d_m - post.mean_dh_m])
+        quality = float(post.mass_in_ellipse)
+        fix = PositionFix(t_s, pos, cov, quality, source="tan", vel_lag_s=lag_s if p.velocity_lag == "model" else None)
+        # For scoring: the same offset on the track where it holds, at the ranges' mean time.
+        i = int(np.searchsorted(w.times_s, t_s - lag_s))
+        mean_ne = w.track_ne_m[min(i, len(w.track_ne_m) - 1)] + post.mean_ne_m
+        return fix, TanAttempt(t_s, fix, (float(mean_ne[0]), float(mean_ne[1])), n, roughness, quality, post.edge_mass, "",
+                               post.outliers, lag_s)
