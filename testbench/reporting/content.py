@@ -9,6 +9,7 @@ from typing import Any
 from testbench.reporting import figures_events as fe
 from testbench.reporting import figures_gnss as fg
 from testbench.reporting import figures_nav as fn
+from testbench.reporting import figures_tan as ft
 from testbench.reporting import figures_wind as fw
 from testbench.reporting.model import FigureItem, Report, Section, Table
 from testbench.scoring import MetricsResult, ThresholdResult, check_thresholds, load_run, score_record
@@ -33,6 +34,7 @@ KEY_METRICS = (
     "ismn.fix_rate", "ismn.accept_rate", "ismn.latency_ms.mean", "ismn.latency_ms.p95",
     "ismn.all.horizontal_error_m.mean", "ismn.smooth.horizontal_error_m.mean", "ismn.turning.horizontal_error_m.mean",
     "ismn.all.horizontal_error_pct_agl.mean",
+    "tan.fix_rate", "tan.window_error_m.mean", "tan.horizontal_error_m.mean", "tan.horizontal_nees.mean_per_dof",
     "relnav.error_m.mean", "relnav.error_m.max", "relnav.error_less_own_heading_m.mean", "relnav.id_correct_rate", "relnav.id_ambiguous_rate", "relnav.track_id_correct_rate", "formation.error_m.rms", "formation.error_m.max",
     "real_time_factor", "sim_time_s", "wall_time_s",
 )
@@ -91,6 +93,8 @@ def _config_table(record: RunRecord) -> Table:
     rows.append(["turning phase", f"|bank| > {ph['turn_bank_deg']:g}° or |turn rate| > {ph['turn_rate_deg_s']:g}°/s"])
     if "same_raster" in info and record.event("ismn") is not None:
         rows.append(["camera raster = matcher raster", fmt(info.get("same_raster"))])
+    if "same_dem" in info and record.event("tan") is not None:
+        rows.append(["world DEM = onboard DEM", fmt(info.get("same_dem"))])
     origin = info.get("origin")
     if isinstance(origin, dict):
         rows.append(["origin", ", ".join(f"{k} {fmt(v)}" for k, v in origin.items())])
@@ -183,6 +187,9 @@ def build_report(run_dir: str | Path, result: MetricsResult | None = None) -> Re
     scene_matching = record.event("ismn") is not None
     if info.get("same_raster") and scene_matching:
         warnings.append("The camera was rendered from the same raster the matcher uses: scene-matching figures are optimistic.")
+    if info.get("same_dem") and record.event("tan") is not None:
+        warnings.append("The vehicle carried the very DEM the world is made of: terrain-aided figures meet no DEM error "
+                        "but the one its dem_sigma_m assumes, and are optimistic.")
     if info.get("abort_reason"):
         warnings.append(f"Run aborted: {info['abort_reason']}")
 
@@ -205,6 +212,10 @@ def build_report(run_dir: str | Path, result: MetricsResult | None = None) -> Re
                                 _figs(fe.ismn_fix_figure(record), examples)))
     elif examples:
         sections.append(Section("Scene matching (ISMN)", "ismn", figures=examples))
+    if result.tan is not None:
+        tan_rows = _metric_rows(flat, [k for k in flat if k.startswith("tan.") and not k.endswith(".n")])
+        sections.append(Section("Terrain-aided navigation (TAN)", "tan", [Table("TAN metrics", ["metric", "value"], tan_rows)],
+                                _figs(ft.tan_fix_figure(record))))
     if result.relnav is not None:
         head = ["mean (m)", "RMS (m)", "p95 (m)", "max (m)", "ID correct", "samples"]
         t_range = Table("Relative navigation by true range", ["range"] + head,

@@ -3,7 +3,7 @@
 A run directory DIR holds (see DESIGN.md, output contract, and the lead's recorder):
 - DIR/telemetry.parquet: one row per vehicle per record tick, sorted by t_s then vehicle order;
   truth_*, nav_*, cmd_*, gd_* (guidance) and gnss_available columns, SI units, local NED.
-- DIR/events/{corrections,ismn,relnav,relnav_id,formation,gnss_sky}.parquet: event tables (all but
+- DIR/events/{corrections,ismn,tan,relnav,relnav_id,formation,gnss_sky}.parquet: event tables (all but
   corrections may be absent; gnss_sky: the satellites a GNSS receiver with a sky model saw).
 - DIR/ismn_examples/*.npz, DIR/frames/*.png: optional images for reports.
 - DIR/run.json: scenario name, seed, timing, status, vehicles, GNSS-denied windows, phase
@@ -41,7 +41,7 @@ REQUIRED_TELEMETRY_COLUMNS = (
     "nav_down_m",
 )
 
-EVENT_TABLES = ("corrections", "ismn", "relnav", "relnav_id", "formation", "gnss_sky")
+EVENT_TABLES = ("corrections", "ismn", "tan", "relnav", "relnav_id", "formation", "gnss_sky")
 
 # Default phase thresholds (run.json "phases"): a sample is "turning" when |bank| exceeds
 # turn_bank_deg or |turn rate| exceeds turn_rate_deg_s.

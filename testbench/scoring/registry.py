@@ -23,7 +23,7 @@ MetricFn = Callable[[Any], Mapping[str, Any]]
 
 #: Top-level keys of metrics.json that belong to the built-in scoring.
 RESERVED_NAMES = frozenset(
-    {"control", "nav", "ismn", "relnav", "formation", "vehicles", "thresholds",
+    {"control", "nav", "ismn", "tan", "relnav", "formation", "vehicles", "thresholds",
      "real_time_factor", "sim_time_s", "wall_time_s", "status"}
 )
 

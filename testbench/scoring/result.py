@@ -194,6 +194,31 @@ class IsmnMetrics(_Section):
 
 
 @dataclass(frozen=True)
+class TanMetrics(_Section):
+    """Terrain-aided navigation (events/tan.parquet: one row per window of radar ranges).
+
+    fix_rate = fixes / windows; accept_rate = fixes the filter accepted / fixes;
+    horizontal_error_m: |fix - truth| north-east (m, with CEP) over the fixes as the navigator
+    got them, at the window's end (they hold the velocity lag the navigator models,
+    PositionFix.vel_lag_s); window_error_m: the same offset at the ranges' mean time, where it
+    holds, against the truth then (the point-mass filter's own error); vertical_error_m:
+    |fix - truth| down (m); horizontal_nees: window_error's NEES against the fixes' horizontal
+    claims (2 dof: mean 2 when they claim what they err by); rejected: reason -> windows
+    without a fix ("flat", "ambiguous", "wide", "at grid edge", "few ranges")."""
+
+    windows: int
+    fixes: int
+    accepted: int
+    fix_rate: float | None = None
+    accept_rate: float | None = None
+    horizontal_error_m: ErrorStats | None = None
+    window_error_m: ErrorStats | None = None
+    vertical_error_m: ErrorStats | None = None
+    horizontal_nees: ChiSquareStats | None = None
+    rejected: Mapping[str, int] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
 class RelnavPair(_Section):
     """Relative-navigation error of one observer -> peer pair."""
 
@@ -255,6 +280,7 @@ class VehicleMetrics(_Section):
     control: ControlMetrics | None = None
     nav: NavMetrics | None = None
     ismn: IsmnMetrics | None = None
+    tan: TanMetrics | None = None
     relnav: RelnavMetrics | None = None
     formation: FormationMetrics | None = None
 
@@ -274,6 +300,7 @@ class MetricsResult(_Section):
     control: ControlMetrics | None = None
     nav: NavMetrics | None = None
     ismn: IsmnMetrics | None = None
+    tan: TanMetrics | None = None
     relnav: RelnavMetrics | None = None
     formation: FormationMetrics | None = None
     vehicles: Mapping[str, VehicleMetrics] = field(default_factory=dict)

@@ -18,6 +18,7 @@ from typing import Iterable, Mapping
 from testbench.scoring.metrics_control import compute_control
 from testbench.scoring.metrics_events import compute_formation, compute_ismn, compute_relnav
 from testbench.scoring.metrics_nav import compute_nav
+from testbench.scoring.metrics_tan import compute_tan
 from testbench.scoring.record_io import RunRecord, load_run
 from testbench.scoring.registry import MetricFn, registered_metrics, resolve_metrics, run_metric
 from testbench.scoring.result import MetricsResult, VehicleMetrics, json_safe
@@ -39,6 +40,7 @@ def score_vehicle(record: RunRecord) -> VehicleMetrics:
         control=compute_control(record),
         nav=compute_nav(record),
         ismn=compute_ismn(record),
+        tan=compute_tan(record),
         relnav=compute_relnav(record),
         formation=compute_formation(record),
     )
@@ -67,6 +69,7 @@ def score_record(record: RunRecord, metrics: Iterable[str | MetricFn] | None = N
         control=overall.control,
         nav=overall.nav,
         ismn=overall.ismn,
+        tan=overall.tan,
         relnav=overall.relnav,
         formation=overall.formation,
         vehicles=vehicles,
