@@ -114,11 +114,13 @@ def run_scenario(
 ) -> RunOutcome:
     """Fly the scenario and write the output contract into out_dir (processes: see Engine)."""
     out = Path(out_dir)
+    # Assembled before the folder is made: a vehicle that cannot be built (bad input, exit 2)
+    # leaves no folder behind.
+    engine, world, recorder = build_engine(loaded, seed=seed, realtime=realtime, on_progress=on_progress,
+                                           frame_sink=frame_sink, processes=processes)
     out.mkdir(parents=True, exist_ok=True)
     for stale in ("metrics.json", "run.json", "report.html", "report.pdf", "map_preview.png"):
         (out / stale).unlink(missing_ok=True)  # never leave a previous run's verdict behind
-    engine, world, recorder = build_engine(loaded, seed=seed, realtime=realtime, on_progress=on_progress,
-                                           frame_sink=frame_sink, processes=processes)
     result = engine.run()
     if result.aborted is not None and not isinstance(result.aborted, SimulationAborted):
         raise result.aborted  # a bug or a user error surfaced mid-run: not a flight outcome

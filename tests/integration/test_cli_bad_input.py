@@ -66,3 +66,24 @@ def test_unknown_aircraft_lists_available(tmp_path):
         _run("run", str(RACETRACK), "--set", "vehicles.uav0.aircraft=cessna999", "--out", str(tmp_path / "o")),
         r"unknown aircraft 'cessna999'; available: tb_fixedwing, tb_quad, .*c172x",
     )
+
+
+TAN = REPO / "scenarios" / "tan_radalt_300m.yaml"
+
+
+@pytest.mark.parametrize(
+    "scenario, overrides, pattern",
+    [
+        (TAN, ["world.elevation=null", "world.reference_elevation_error=null"],
+         r"aids\[tan\]: terrain-aided navigation needs a DEM onboard: world\.reference_elevation or world\.elevation"),
+        (TAN, ["world.reference_elevation_error={rms_m: 2, correlation_m: -300}"],
+         r"world\.reference_elevation_error\.correlation_m: Input should be greater than 0"),
+        (TAN, ["vehicles.uav0.aids.tan.cells=60"], r"aids\[0\]\.params\.cells: .*must be odd"),
+        (RACETRACK, ["vehicles.uav0.aids=[{type: tan}]"],
+         r"aids\[tan\]\.params\.sensor: no sensor named 'radar_altimeter' on this vehicle \(have: ideal_state\)"),
+    ],
+)
+def test_terrain_aided_navigation_misconfigured(tmp_path, scenario, overrides, pattern):
+    args = [a for o in overrides for a in ("--set", o)]
+    _check(_run("run", str(scenario), "--out", str(tmp_path / "o"), *args), pattern)
+    assert not (tmp_path / "o").exists()
