@@ -10,7 +10,6 @@ that the engine fills: this module never sees truth.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -21,6 +20,7 @@ from testbench.core.errors import InputError
 from testbench.core.interfaces import BuildContext, NavigationAid
 from testbench.core.messages import NavEstimate, PositionFix
 from testbench.core.registry import ParamsModel, build, register
+from testbench.navigation.fix_columns import position_fix_columns
 from testbench.navigation.ismn import IsmnParams, IsmnPipeline
 
 _NAN = float("nan")
@@ -45,16 +45,9 @@ class IsmnAttempt:
         d = self.diag
         lat = d.latency_ms
         fix = self.fix
-        cov = fix.cov_ned_m2 if fix is not None else None
         row = dict(
             t_s=self.t_s, vehicle_id=vehicle_id, attempted=bool(getattr(d, "attempted", True)),
-            fix=fix is not None, accepted=None,
-            fix_north_m=float(fix.pos_ned_m[0]) if fix is not None else _NAN,
-            fix_east_m=float(fix.pos_ned_m[1]) if fix is not None else _NAN,
-            fix_down_m=float(fix.pos_ned_m[2]) if fix is not None else _NAN,
-            sigma_north_m=math.sqrt(cov[0, 0]) if cov is not None else _NAN,
-            sigma_east_m=math.sqrt(cov[1, 1]) if cov is not None else _NAN,
-            sigma_down_m=math.sqrt(cov[2, 2]) if cov is not None else _NAN,
+            fix=fix is not None, accepted=None, **position_fix_columns(fix),
             quality=float(fix.quality) if fix is not None else float(getattr(d, "peak_quality", 0.0)),
             latency_ms=float(lat.get("ortho_to_fix", lat.get("total", _NAN))),
             total_ms=float(lat.get("total", _NAN)),

@@ -31,6 +31,7 @@ from testbench.core.interfaces import BuildContext, NavigationAid
 from testbench.core.messages import NavEstimate, PositionFix, RadarAltSample
 from testbench.core.registry import ParamsModel, register
 from testbench.core.rotations import quat_to_dcm
+from testbench.navigation.fix_columns import position_fix_columns
 from testbench.navigation.tan.pmf import TerrainPmf
 from testbench.world.raster import LocalRaster, sample_bilinear
 
@@ -56,13 +57,7 @@ class TanAttempt:
         fix = self.fix
         cov = fix.cov_ned_m2 if fix is not None else None
         row = dict(
-            t_s=self.t_s, vehicle_id=vehicle_id, fix=fix is not None, accepted=None,
-            fix_north_m=float(fix.pos_ned_m[0]) if fix is not None else _NAN,
-            fix_east_m=float(fix.pos_ned_m[1]) if fix is not None else _NAN,
-            fix_down_m=float(fix.pos_ned_m[2]) if fix is not None else _NAN,
-            sigma_north_m=math.sqrt(cov[0, 0]) if cov is not None else _NAN,
-            sigma_east_m=math.sqrt(cov[1, 1]) if cov is not None else _NAN,
-            sigma_down_m=math.sqrt(cov[2, 2]) if cov is not None else _NAN,
+            t_s=self.t_s, vehicle_id=vehicle_id, fix=fix is not None, accepted=None, **position_fix_columns(fix),
             cov_ne_m2=float(cov[0, 1]) if cov is not None else _NAN,
             vel_lag_s=float(self.lag_s) if fix is not None else _NAN,
             mean_north_m=float(self.mean_ne_m[0]), mean_east_m=float(self.mean_ne_m[1]),

@@ -87,17 +87,22 @@ class RunWorld:
                 self._reference = open_world_imagery(spec, self.origin, self.cache_dir)
         return self._reference
 
+    def _world_rng(self, key: str, seed: int | None) -> np.random.Generator:
+        """The generator of what world.<key> draws: its own seed's stream (the same in every
+        run), else the run's (each run of a batch draws anew)."""
+        stream = {"magnetic_anomaly": "magnetic_anomaly", "reference_elevation_error": "dem_error"}[key]
+        if seed is not None:
+            return RngStreams(seed).generator("world", stream)
+        if self._streams is None:
+            raise ValueError(f"world.{key} has no seed and this RunWorld was given no run streams")
+        return self._streams.generator("world", stream)
+
     def magnetic_anomaly(self) -> CrustalAnomaly | None:
         """The crust's field over the WMM (None when the scenario gives none), drawn once."""
         spec = self.spec.magnetic_anomaly
         if spec is None or self._magnetic_anomaly is not None:
             return self._magnetic_anomaly
-        if spec.seed is not None:
-            rng = RngStreams(spec.seed).generator("world", "magnetic_anomaly")
-        elif self._streams is not None:
-            rng = self._streams.generator("world", "magnetic_anomaly")
-        else:
-            raise ValueError("world.magnetic_anomaly has no seed and this RunWorld was given no run streams")
+        rng = self._world_rng("magnetic_anomaly", spec.seed)
         self._magnetic_anomaly = CrustalAnomaly(spec.rms_nT, spec.source_depth_m, rng, n_waves=spec.waves)
         return self._magnetic_anomaly
 
@@ -123,12 +128,7 @@ class RunWorld:
                 from testbench.world.dem_error import ErroredElevation
                 from testbench.world.elevation import FlatElevation
 
-                if err.seed is not None:
-                    rng = RngStreams(err.seed).generator("world", "dem_error")
-                elif self._streams is not None:
-                    rng = self._streams.generator("world", "dem_error")
-                else:
-                    raise ValueError("world.reference_elevation_error has no seed and this RunWorld was given no run streams")
+                rng = self._world_rng("reference_elevation_error", err.seed)
                 base = self._reference_elevation if self._reference_elevation is not None else FlatElevation(0.0)
                 self._reference_elevation = ErroredElevation(base, err.rms_m, err.correlation_m, rng)
         return self._reference_elevation
