@@ -103,6 +103,7 @@ class InsEkfNavigator(Navigator):
         self._initialized = False
         self._last_gnss_t = -math.inf
         self._last_fix_ok_t_s: float | None = None  # last accepted position fix (None: none yet)
+        self._fix_refusals = 0  # position fixes refused by the gate since the last accepted one
         self._last_gnss_ok_t_s: float | None = None  # last accepted GNSS fix (None: none yet)
         self._last_baro_ok_t_s: float | None = None  # last accepted barometer sample
         self._gnss_guard = None if params.gnss_monitor is None else GnssSpoofGuard(params.gnss_monitor)
@@ -215,8 +216,11 @@ class InsEkfNavigator(Navigator):
                                         appearance_gain=self.appearance_gain(measurement.quality),
                                         vel_lag_s=measurement.vel_lag_s)
             kind = f"position_fix:{measurement.source}"
+            # Short of fix_reset_min_refusals refusals in a row the reset is held off.
+            may_reset = self._fix_refusals + 1 >= p.fix_reset_min_refusals
             info, self._last_fix_ok_t_s = self._update_or_reset(
-                kind, t, y, H, R, self._last_fix_ok_t_s, self._last_gnss_ok_t_s, p.fix_reset_after_s)
+                kind, t, y, H, R, self._last_fix_ok_t_s, self._last_gnss_ok_t_s, p.fix_reset_after_s if may_reset else 0.0)
+            self._fix_refusals = 0 if info.accepted else self._fix_refusals + 1
             if p.use_fix_heading and measurement.heading_rad is not None and info is not None and info.accepted:
                 # The image-only heading of the same solve: nearly uncorrelated with its centre in
                 # a nadir view (a rotation about the vertical through the centre moves no point

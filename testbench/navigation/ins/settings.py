@@ -273,6 +273,12 @@ class InsEkfParams(ParamsModel):
     matcher that is consistently wrong for this long is followed: the price of never
     diverging for good on an overconfident covariance. No reset while GNSS fixes are being
     accepted (then the fixes are what is wrong)."""
+    fix_reset_min_refusals: int = pydantic.Field(1, ge=1)
+    """...and at least this many position fixes in a row must have failed the gate, the one
+    the filter would reset to included. 1: the time alone decides (a fix after a gap in the
+    fixes resets at once). A source whose fixes come seldom and sometimes not at all, such as
+    terrain-aided navigation's one per window, needs more: after a few windows without a fix,
+    a single false one would otherwise become the filter's position."""
     gnss_reset_after_s: float = pydantic.Field(5.0, ge=0.0)
     """GNSS fixes that keep arriving and keep failing the gate for this long (s): the filter
     has diverged (a consumer IMU's unmodelled errors in a hard manoeuvre, a long outage);

@@ -256,6 +256,27 @@ def test_fixes_rejected_past_the_timeout_reset_the_position():
             assert np.linalg.norm(nav.estimate().pos_ned_m - true_ned) < 10.0
 
 
+def test_a_fix_after_a_gap_resets_only_after_enough_refusals():
+    """After a gap in the fixes the time since the last accepted one is long already: with
+    fix_reset_min_refusals 1 the first fix that fails the gate resets the position at once (a
+    single false fix becomes the filter's position), with 3 only the third in a row does."""
+    true_ned = geodesy.geodetic_to_ned(LAT0, LON0, H0, ORIGIN.lat_rad, ORIGIN.lon_rad, ORIGIN.alt_m)
+    cov = np.diag([4.0, 4.0, 9.0])
+    w, f = static_imu(LAT0, H0, np.array([1.0, 0, 0, 0]))
+    for min_refusals, first_reset in ((1, 0), (3, 2)):
+        nav = _converged_static_nav()
+        nav.params = nav.params.model_copy(update={"fix_reset_after_s": 5.0, "fix_reset_min_refusals": min_refusals})
+        nav.predict(ImuSample(11.0, w, f))
+        assert nav.correct(PositionFix(11.0, true_ned, cov, 0.9)).accepted
+        infos = []
+        for k, t in enumerate((30.0, 31.0, 32.0, 33.0)):  # 19 s without a fix, then 200 m off
+            nav.predict(ImuSample(t, w, f))
+            infos.append(nav.correct(PositionFix(t, true_ned + np.array([200.0, 0.0, 0.0]), cov, 0.9)))
+        kinds = [i.kind for i in infos]
+        assert kinds[first_reset] == "position_fix:ismn:reset", kinds
+        assert [i.accepted for i in infos[:first_reset]] == [False] * first_reset
+
+
 def test_spoofing_monitor_holds_a_carry_off_out_and_blocks_the_reset():
     """A static vehicle whose receiver is dragged east at 0.2 m/s^2 from 10 s: without the
     monitor the filter follows the fixes (first the gate passes them, then gnss_reset_after_s
