@@ -52,6 +52,7 @@ class TanAttempt:
     reason: str
     outliers: int = 0
     lag_s: float = _NAN
+    misfit_per_dof: float = _NAN
 
     def event_rows(self, vehicle_id: str) -> list[tuple[str, dict]]:
         fix = self.fix
@@ -63,6 +64,7 @@ class TanAttempt:
             mean_north_m=float(self.mean_ne_m[0]), mean_east_m=float(self.mean_ne_m[1]),
             samples=int(self.samples), roughness_m=float(self.roughness_m),
             mass_in_ellipse=float(self.mass_in_ellipse), edge_mass=float(self.edge_mass), outliers=int(self.outliers),
+            misfit_per_dof=float(self.misfit_per_dof),
             reason=self.reason,
             truth_north_m=_NAN, truth_east_m=_NAN, truth_down_m=_NAN, truth_height_agl_m=_NAN,
         )
@@ -90,11 +92,18 @@ class TanAid(NavigationAid):
     """Terrain-aided position fixes from one radar altimeter and the onboard DEM.
 
     Params: sensor (the radar altimeter's name); window_s (ranges per fix, s); every_n (use one
-    range in N); cells (grid points per horizontal axis, odd); n_sigma and min_half_width_m
+    range in N); cells (grid points per horizontal axis, odd; more, up to max_cells, where the
+    grid would otherwise step farther than the DEM's own sample); n_sigma and min_half_width_m
     (grid half width: n_sigma of the navigator's horizontal sigmas, at least this);
     dem_sigma_m, dem_correlation_m (the onboard DEM's error against the ground the radar sees,
     1 sigma, m, and the size of its patches, m; 0: white); outlier_sigmas (a range off the
-    model by more is dropped: trees, masts, water); min_samples, min_roughness_m (the window's terrain
+    model by more is dropped: trees, masts, water; a window that drops more than
+    max_outlier_share of its ranges gives no fix: the match explains too little of what the
+    radar saw; nor does one whose best match still misses the ranges by more than max_misfit
+    times the chi-square they should give, or whose height offset lies beyond
+    max_height_sigmas of what the navigator's height, the match and the DEM allow: ground the
+    DEM does not hold, such as a town's roofs in the beam); min_samples,
+    min_roughness_m (the window's terrain
     profile: its standard deviation, m), min_mass, max_edge_mass, max_fix_sigma_m (the
     density's acceptance); fix_sigma_floor_m (added per axis to the fix's claim, m);
     max_tilt_deg (ranges taken banked or pitched beyond it are skipped: the beam looks sideways);
@@ -110,11 +119,15 @@ class TanAid(NavigationAid):
         window_s: float = pydantic.Field(20.0, gt=0)
         every_n: int = pydantic.Field(2, ge=1)
         cells: int = pydantic.Field(61, ge=5)
+        max_cells: int = pydantic.Field(121, ge=5)
         n_sigma: float = pydantic.Field(4.0, gt=0)
         min_half_width_m: float = pydantic.Field(60.0, gt=0)
         dem_sigma_m: float = pydantic.Field(1.0, ge=0)
         dem_correlation_m: float = pydantic.Field(0.0, ge=0)
         outlier_sigmas: float = pydantic.Field(4.0, gt=0)
+        max_outlier_share: float = pydantic.Field(0.1, ge=0, le=1)
+        max_misfit: float = pydantic.Field(3.0, gt=0)
+        max_height_sigmas: float = pydantic.Field(4.0, gt=0)
         min_samples: int = pydantic.Field(20, ge=1)
         min_roughness_m: float = pydantic.Field(3.0, ge=0)
         min_mass: float = pydantic.Field(0.95, ge=0, le=1)
@@ -122,10 +135,10 @@ class TanAid(NavigationAid):
         max_fix_sigma_m: float = pydantic.Field(60.0, gt=0)
         fix_sigma_floor_m: float = pydantic.Field(1.0, ge=0)
         max_tilt_deg: float = pydantic.Field(35.0, gt=0, le=90)
-        max_widen: float = pydantic.Field(8.0, ge=1)
+        max_widen: float = pydantic.Field(4.0, ge=1)
         velocity_lag: Literal["model", "inflate"] = "model"
 
-        @pydantic.field_validator("cells")
+        @pydantic.field_validator("cells", "max_cells")
         @classmethod
         def _odd(cls, v: int) -> int:
             if v % 2 == 0:
@@ -169,7 +182,10 @@ class TanAid(NavigationAid):
         # Widened after a window whose density pressed against the grid's edge: the filter
         # claimed less than it erred by, and the next search must reach where it is.
         half = max(p.n_sigma * sigma_h, p.min_half_width_m) * self._widen
-        pmf = TerrainPmf(half, p.cells, p.dem_sigma_m, p.dem_correlation_m)
+        # A grid coarser than the DEM would step over the likelihood's peaks (their width is the
+        # terrain's, about a DEM sample) and could land a node on a false one: finer, up to max_cells.
+        cells = min(max(p.cells, 2 * math.ceil(half / self._dem_gsd_m) + 1), max(p.max_cells, p.cells))
+        pmf = TerrainPmf(half, cells, p.dem_sigma_m, p.dem_correlation_m)
         # The DEM under everything the window can see: the grid, the track ahead, the beam.
         v_ne = np.asarray(est.vel_ned_mps, float)[:2]
         reach = half + float(np.hypot(*v_ne)) * p.window_s * 1.2 + range_m * (self._beam_tan + 0.2) + 3.0 * self._dem_gsd_m
@@ -230,6 +246,12 @@ class TanAid(NavigationAid):
             reason = "few ranges"
         elif roughness < p.min_roughness_m:
             reason = "flat"
+        elif post.outliers > p.max_outlier_share * n:
+            reason = "outliers"
+        elif post.misfit_per_dof > p.max_misfit:
+            reason = "misfit"
+        elif post.mean_dh_m**2 > p.max_height_sigmas**2 * (float(est.cov_pos_ned_m2[2, 2]) + post.var_dh_m2 + p.dem_sigma_m**2):
+            reason = "height"
         elif post.edge_mass > p.max_edge_mass:
             reason = "at grid edge"
         elif post.mass_in_ellipse < p.min_mass:
@@ -239,7 +261,7 @@ class TanAid(NavigationAid):
         self._widen = min(2.0 * self._widen, p.max_widen) if reason == "at grid edge" else 1.0
         if reason:
             return None, TanAttempt(t_s, None, (_NAN, _NAN), n, roughness, post.mass_in_ellipse, post.edge_mass, reason,
-                                    post.outliers)
+                                    post.outliers, misfit_per_dof=post.misfit_per_dof)
         # The offset found is the track's over the window, which a velocity error tilts: it
         # holds at the ranges' mean time, and the dead-reckoned track carried it from there to
         # t_s on the estimated velocity (PositionFix.vel_lag_s: the navigator fuses that lag).
@@ -260,4 +282,4 @@ class TanAid(NavigationAid):
         i = int(np.searchsorted(w.times_s, t_s - lag_s))
         mean_ne = w.track_ne_m[min(i, len(w.track_ne_m) - 1)] + post.mean_ne_m
         return fix, TanAttempt(t_s, fix, (float(mean_ne[0]), float(mean_ne[1])), n, roughness, quality, post.edge_mass, "",
-                               post.outliers, lag_s)
+                               post.outliers, lag_s, post.misfit_per_dof)

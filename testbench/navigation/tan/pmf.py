@@ -47,7 +47,10 @@ class PmfPosterior:
     mass_in_ellipse: the probability inside the 99 % ellipse of (mean, cov) (chi-square 2 dof,
     9.21): near 0.99 for one peak, lower where the density has several; edge_mass: the
     probability in the grid's outer ring of cells (a density pressed against the grid's edge
-    was cut off there); used, outliers: ranges in the density and ranges dropped."""
+    was cut off there); used, outliers: ranges in the density and ranges dropped;
+    misfit_per_dof: the best offset's chi-square (a_j - b_j^2 / c) over its used - 1 degrees of
+    freedom: about 1 when the ranges are what the model says they are, far above it when the
+    ground is not what the DEM holds (a town, a forest) or the offset is not on the grid."""
 
     mean_ne_m: np.ndarray
     cov_ne_m2: np.ndarray
@@ -57,6 +60,7 @@ class PmfPosterior:
     edge_mass: float
     used: int
     outliers: int
+    misfit_per_dof: float
 
 
 class TerrainPmf:
@@ -165,4 +169,6 @@ class TerrainPmf:
         d2 = np.einsum("...i,ij,...j->...", x, np.linalg.inv(cov), x)
         inside = float(w_ne[d2 <= 9.21].sum())
         edge = float(w_ne[0].sum() + w_ne[-1].sum() + w_ne[1:-1, 0].sum() + w_ne[1:-1, -1].sum())
-        return PmfPosterior(np.array([mn, me]), cov, mh, vh, inside, edge, int(keep.sum()), int(n_all - keep.sum()))
+        used = int(keep.sum())
+        misfit = float(-2.0 * log_l.max()) / max(used - 1, 1)  # log L_j = -1/2 (a_j - b_j^2 / c)
+        return PmfPosterior(np.array([mn, me]), cov, mh, vh, inside, edge, used, n_all - used, misfit)

@@ -118,3 +118,17 @@ def test_no_return_beyond_the_altimeter_range():
     r = radar.measure(make_truth(0.2, pos_ned_m=(0.0, 0.0, -150.0), rpy_rad=(math.radians(10.0), 0.0, 0.0)),
                       FakeWorld(), rng)
     assert r.range_m == pytest.approx(150.0, abs=2.0)  # a 20 deg beam still sees straight down at 10 deg of bank
+
+
+def test_ground_the_dem_does_not_hold_gives_no_fix(desert):
+    """A town the DEM does not hold (40 m blocks over a third of the ground): the wide beam finds
+    a roof in most ranges, so the ground reads 40 m higher than the DEM and the navigator's
+    height allow, and the window gives no fix."""
+    def town(north_m, east_m):
+        blocks = ((np.floor(np.asarray(north_m) / 60.0) + np.floor(np.asarray(east_m) / 60.0)) % 3 == 0)
+        return desert.height_m(north_m, east_m) + 40.0 * blocks
+
+    radar = _radar()
+    fixes, attempts, _ = _fly(_aid(radar, desert), radar, FakeWorld(terrain=town))
+    (_, row), = attempts[0].event_rows("uav0")
+    assert fixes == [] and row["reason"] == "height", row
