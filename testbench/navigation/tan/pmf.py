@@ -104,7 +104,9 @@ class TerrainPmf:
 
     def _covariance(self, keep: np.ndarray) -> np.ndarray:
         """C (m, m) over the kept ranges: their white noise plus the DEM's correlated error."""
-        s = np.asarray(self._sigmas)[keep]
+        # A centimetre of white noise at least: a Gaussian kernel over close points is all but
+        # singular, and an ideal altimeter (sigma 0) would leave C without an inverse.
+        s = np.maximum(np.asarray(self._sigmas)[keep], 0.01)
         C = np.diag(s**2)
         if self.dem_sigma_m > 0:
             p = np.asarray(self._track_ne)[keep]
