@@ -74,9 +74,13 @@ class TanAttempt:
 @dataclass
 class _Window:
     """The ranges gathered since the window started: the point-mass filter over the
-    dead-reckoned track, that track's end (NE, m), the estimated velocity last used."""
+    dead-reckoned track and the DEM under its grid, that track's end (NE, m), the estimated
+    velocity last used, and each range as taken (antenna NED m, R_nb, range m, sigma m), so
+    that a wider grid can search them again."""
 
     t0_s: float
+    start_ne_m: np.ndarray
+    reach_m: float  # how far from start_ne_m the track and its beam may go, besides the grid
     pmf: TerrainPmf
     dem: LocalRaster
     dr_ne_m: np.ndarray
@@ -85,6 +89,7 @@ class _Window:
     terrain_m: list[float] = field(default_factory=list)
     times_s: list[float] = field(default_factory=list)
     track_ne_m: list[np.ndarray] = field(default_factory=list)
+    ranges: list[tuple[np.ndarray, np.ndarray, float, float]] = field(default_factory=list)
 
 
 @register("aid", "tan")
@@ -107,8 +112,8 @@ class TanAid(NavigationAid):
     profile: its standard deviation, m), min_mass, max_edge_mass, max_fix_sigma_m (the
     density's acceptance); fix_sigma_floor_m (added per axis to the fix's claim, m);
     max_tilt_deg (ranges taken banked or pitched beyond it are skipped: the beam looks sideways);
-    max_widen (after a window pressed against the grid's edge the next grid is twice as wide,
-    up to this factor, until a fix); velocity_lag: "model" hands the fix's velocity lag to the
+    max_widen (a window whose density presses against its grid's edge is searched again, on
+    its own ranges, on a grid twice as wide, up to this factor); velocity_lag: "model" hands the fix's velocity lag to the
     navigator (PositionFix.vel_lag_s, which ins_ekf fuses), "inflate" adds the lag times the
     navigator's velocity sigma to the fix's claim instead, for a navigator that ignores
     vel_lag_s (20 runs of tan_radalt_300m: see docs/measurements.md, terrain-aided navigation).
@@ -168,7 +173,6 @@ class TanAid(NavigationAid):
         self._dem_gsd_m = float(getattr(self.dem, "native_gsd_m", None) or 10.0)
         self._n = 0
         self._win: _Window | None = None
-        self._widen = 1.0
 
     def accepts(self, measurement: Any) -> bool:
         return isinstance(measurement, RadarAltSample)
@@ -179,19 +183,33 @@ class TanAid(NavigationAid):
         p = self.params
         cov = np.asarray(est.cov_pos_ned_m2, float)
         sigma_h = math.sqrt(max(float(np.linalg.eigvalsh(cov[:2, :2]).max()), 1e-6))
-        # Widened after a window whose density pressed against the grid's edge: the filter
-        # claimed less than it erred by, and the next search must reach where it is.
-        half = max(p.n_sigma * sigma_h, p.min_half_width_m) * self._widen
+        half = max(p.n_sigma * sigma_h, p.min_half_width_m)
+        v_ne = np.asarray(est.vel_ned_mps, float)[:2]
+        # Beyond the grid: the track ahead and the beam's footprint at this height.
+        reach = float(np.hypot(*v_ne)) * p.window_s * 1.2 + range_m * (self._beam_tan + 0.2) + 3.0 * self._dem_gsd_m
+        start = np.asarray(est.pos_ned_m[:2], float).copy()
+        pmf, dem = self._grid(half, start, reach)
+        return _Window(t_s, start, reach, pmf, dem, start.copy(), t_s, v_ne.copy())
+
+    def _grid(self, half_m: float, start_ne_m: np.ndarray, reach_m: float) -> tuple[TerrainPmf, LocalRaster]:
+        """An empty point-mass grid of half width half_m and the onboard DEM under all it can
+        see from a window starting at start_ne_m."""
+        p = self.params
         # A grid coarser than the DEM would step over the likelihood's peaks (their width is the
         # terrain's, about a DEM sample) and could land a node on a false one: finer, up to max_cells.
-        cells = min(max(p.cells, 2 * math.ceil(half / self._dem_gsd_m) + 1), max(p.max_cells, p.cells))
-        pmf = TerrainPmf(half, cells, p.dem_sigma_m, p.dem_correlation_m)
-        # The DEM under everything the window can see: the grid, the track ahead, the beam.
-        v_ne = np.asarray(est.vel_ned_mps, float)[:2]
-        reach = half + float(np.hypot(*v_ne)) * p.window_s * 1.2 + range_m * (self._beam_tan + 0.2) + 3.0 * self._dem_gsd_m
-        n0, e0 = (float(x) for x in est.pos_ned_m[:2])
-        dem = self.dem.read_local(n0 - reach, n0 + reach, e0 - reach, e0 + reach, self._dem_gsd_m)
-        return _Window(t_s, pmf, dem, np.array([n0, e0]), t_s, v_ne.copy())
+        cells = min(max(p.cells, 2 * math.ceil(half_m / self._dem_gsd_m) + 1), max(p.max_cells, p.cells))
+        n0, e0 = (float(x) for x in start_ne_m)
+        r = half_m + reach_m
+        dem = self.dem.read_local(n0 - r, n0 + r, e0 - r, e0 + r, self._dem_gsd_m)
+        return TerrainPmf(half_m, cells, p.dem_sigma_m, p.dem_correlation_m), dem
+
+    def _fold(self, pmf: TerrainPmf, dem: LocalRaster, antenna, R_nb, range_m: float, sigma_m: float) -> None:
+        """One range into the grid, over the DEM raster under it (NaN off the DEM)."""
+        def height_m(north_m, east_m):
+            v, ok = sample_bilinear(dem, north_m, east_m)
+            return np.where(ok, v, np.nan)
+
+        pmf.update(antenna, R_nb, self.rays_b, range_m, sigma_m, height_m)
 
     def process(self, measurement: Any, estimate: NavEstimate) -> tuple[list, TanAttempt | None]:
         self._n += 1
@@ -215,13 +233,8 @@ class TanAid(NavigationAid):
         d_m = float(estimate.pos_ned_m[2])
         antenna = np.array([w.dr_ne_m[0], w.dr_ne_m[1], d_m]) + R_nb @ self._lever_b
         sigma = math.hypot(self._noise_m, self._noise_fraction * r)  # the altimeter's own; the DEM's is the pmf's
-        dem = w.dem
-
-        def height_m(north_m, east_m):
-            v, ok = sample_bilinear(dem, north_m, east_m)
-            return np.where(ok, v, np.nan)
-
-        w.pmf.update(antenna, R_nb, self.rays_b, r, sigma, height_m)
+        self._fold(w.pmf, w.dem, antenna, R_nb, r, sigma)
+        w.ranges.append((antenna, R_nb, r, sigma))
         w.terrain_m.append(-antenna[2] - r)  # the terrain's height under the track, as ranged
         w.times_s.append(t)
         w.track_ne_m.append(w.dr_ne_m.copy())
@@ -238,6 +251,15 @@ class TanAid(NavigationAid):
         roughness = float(np.std(w.terrain_m)) if w.terrain_m else 0.0
         try:
             post = w.pmf.posterior(p.outlier_sigmas)
+            half0, widen = float(w.pmf.offsets_m[-1]), 2.0
+            # Pressed against the grid's edge: the navigator claimed less than it errs by, and
+            # the same ranges are searched again on a grid twice as wide (and again).
+            while post.edge_mass > p.max_edge_mass and widen <= p.max_widen:
+                w.pmf, w.dem = self._grid(half0 * widen, w.start_ne_m, w.reach_m)
+                for antenna, R_nb, r, sigma in w.ranges:
+                    self._fold(w.pmf, w.dem, antenna, R_nb, r, sigma)
+                post = w.pmf.posterior(p.outlier_sigmas)
+                widen *= 2.0
         except ValueError:  # the whole search region off the onboard DEM
             return None, TanAttempt(t_s, None, (_NAN, _NAN), n, roughness, _NAN, _NAN, "off the DEM")
         sig = math.sqrt(max(float(np.linalg.eigvalsh(post.cov_ne_m2).max()), 0.0))
@@ -246,19 +268,18 @@ class TanAid(NavigationAid):
             reason = "few ranges"
         elif roughness < p.min_roughness_m:
             reason = "flat"
+        elif post.edge_mass > p.max_edge_mass:  # (first: a grid that misses the truth fits badly too)
+            reason = "at grid edge"
         elif post.outliers > p.max_outlier_share * n:
             reason = "outliers"
         elif post.misfit_per_dof > p.max_misfit:
             reason = "misfit"
         elif post.mean_dh_m**2 > p.max_height_sigmas**2 * (float(est.cov_pos_ned_m2[2, 2]) + post.var_dh_m2 + p.dem_sigma_m**2):
             reason = "height"
-        elif post.edge_mass > p.max_edge_mass:
-            reason = "at grid edge"
         elif post.mass_in_ellipse < p.min_mass:
             reason = "ambiguous"
         elif sig > p.max_fix_sigma_m:
             reason = "wide"
-        self._widen = min(2.0 * self._widen, p.max_widen) if reason == "at grid edge" else 1.0
         if reason:
             return None, TanAttempt(t_s, None, (_NAN, _NAN), n, roughness, post.mass_in_ellipse, post.edge_mass, reason,
                                     post.outliers, misfit_per_dof=post.misfit_per_dof)

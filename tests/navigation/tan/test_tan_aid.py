@@ -33,14 +33,15 @@ def _aid(radar, dem, **params):
                           sensors={"radar": radar}, onboard={"reference_elevation": lambda: dem})
 
 
-def _estimate(truth, sigma_m: float) -> NavEstimate:
-    pos = truth.pos_ned_m + np.r_[OFFSET_NE_M, 0.0]
+def _estimate(truth, sigma_m: float, offset_ne_m=OFFSET_NE_M) -> NavEstimate:
+    pos = truth.pos_ned_m + np.r_[offset_ne_m, 0.0]
     return NavEstimate(truth.t_s, pos, truth.vel_ned_mps.copy(), truth.q_nb_wxyz, truth.rpy_rad, np.zeros(3),
                        np.diag([sigma_m**2, sigma_m**2, 1.0]), np.eye(3) * 0.01, np.eye(3) * 1e-6)
 
 
-def _fly(aid, radar, world, seconds: float = 20.0):
-    """Truth flying north at 25 m/s, 300 m up; returns (fixes, attempts, last truth)."""
+def _fly(aid, radar, world, seconds: float = 20.0, sigma_m: float = 20.0, offset_ne_m=OFFSET_NE_M):
+    """Truth flying north at 25 m/s, 300 m up, the estimate offset_ne_m off claiming sigma_m;
+    returns (fixes, attempts, last truth)."""
     rng = np.random.default_rng(2)
     fixes, attempts, truth = [], [], None
     for k in range(int(seconds * 10) + 1):
@@ -48,7 +49,7 @@ def _fly(aid, radar, world, seconds: float = 20.0):
         truth = make_truth(t, pos_ned_m=(-800.0 + 25.0 * t, 100.0, -300.0), vel_ned_mps=(25.0, 0.0, 0.0))
         m = radar.measure(truth, world, rng)
         if m is not None and aid.accepts(m):
-            out, attempt = aid.process(m, _estimate(truth, 20.0))
+            out, attempt = aid.process(m, _estimate(truth, sigma_m, offset_ne_m))
             fixes += out
             attempts += [attempt] if attempt is not None else []
     return fixes, attempts, truth
@@ -132,3 +133,17 @@ def test_ground_the_dem_does_not_hold_gives_no_fix(desert):
     fixes, attempts, _ = _fly(_aid(radar, desert), radar, FakeWorld(terrain=town))
     (_, row), = attempts[0].event_rows("uav0")
     assert fixes == [] and row["reason"] == "height", row
+
+
+def test_a_navigator_further_off_than_it_claims_is_found_on_a_wider_grid(desert):
+    """The estimate 150 m off while claiming 5 m: the first grid (+-60 m) holds the density
+    against its edge, and the window's own ranges searched on grids twice and four times as
+    wide find the truth."""
+    radar = _radar()
+    fixes, attempts, truth = _fly(_aid(radar, desert), radar, FakeWorld(terrain=desert.height_m), sigma_m=5.0,
+                                  offset_ne_m=np.array([-120.0, 90.0]))
+    assert len(fixes) == 1, attempts[0].reason
+    assert np.hypot(*(fixes[0].pos_ned_m - truth.pos_ned_m)[:2]) < 10.0
+    _, narrow_attempts, _ = _fly(_aid(radar, desert, max_widen=1.0), _radar(), FakeWorld(terrain=desert.height_m),
+                                 sigma_m=5.0, offset_ne_m=np.array([-120.0, 90.0]))
+    assert narrow_attempts[0].reason == "at grid edge"
