@@ -134,7 +134,7 @@ class TanAid(NavigationAid):
         max_misfit: float = pydantic.Field(3.0, gt=0)
         max_height_sigmas: float = pydantic.Field(4.0, gt=0)
         min_samples: int = pydantic.Field(20, ge=1)
-        min_roughness_m: float = pydantic.Field(3.0, ge=0)
+        min_roughness_m: float = pydantic.Field(1.5, ge=0)
         min_mass: float = pydantic.Field(0.95, ge=0, le=1)
         max_edge_mass: float = pydantic.Field(0.01, ge=0, le=1)
         max_fix_sigma_m: float = pydantic.Field(60.0, gt=0)
