@@ -109,7 +109,7 @@ class TanAid(NavigationAid):
     max_height_sigmas of what the navigator's height, the match and the DEM allow: ground the
     DEM does not hold, such as a town's roofs in the beam); min_samples,
     min_roughness_m (the window's terrain
-    profile: its standard deviation, m), min_mass, max_edge_mass, max_fix_sigma_m (the
+    profile: its standard deviation less the altimeter's noise, m), min_mass, max_edge_mass, max_fix_sigma_m (the
     density's acceptance); fix_sigma_floor_m (added per axis to the fix's claim, m);
     max_tilt_deg (ranges taken banked or pitched beyond it are skipped: the beam looks sideways);
     max_widen (a window whose density presses against its grid's edge is searched again, on
@@ -248,7 +248,10 @@ class TanAid(NavigationAid):
         """The window's fix (or None) and its attempt row; d_m, est: the estimate at t_s."""
         p = self.params
         n = w.pmf.updates
-        roughness = float(np.std(w.terrain_m)) if w.terrain_m else 0.0
+        # The terrain profile's own spread: its SD as ranged, less the altimeter's noise in it
+        # (flat ground ranged with 1.5 m of noise is no rougher than flat ground).
+        noise_var = float(np.mean([sig**2 for *_, sig in w.ranges])) if w.ranges else 0.0
+        roughness = math.sqrt(max(float(np.var(w.terrain_m)) - noise_var, 0.0)) if w.terrain_m else 0.0
         try:
             post = w.pmf.posterior(p.outlier_sigmas)
             half0, widen = float(w.pmf.offsets_m[-1]), 2.0

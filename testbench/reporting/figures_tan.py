@@ -43,7 +43,7 @@ def tan_fix_figure(record: RunRecord) -> FigureItem | None:
         sel = ~fix & (reasons == why)
         axr.plot(t[sel], rough[sel], "x", ms=5, color=f"C{3 + i}", label=f"no fix: {why} ({int(sel.sum())})")
     axr.set_xlabel("time (s)")
-    axr.set_ylabel("terrain profile SD (m)")
+    axr.set_ylabel("terrain profile SD, noise removed (m)")
     axr.grid(True, alpha=0.3)
     axr.legend(fontsize=7)
     return FigureItem(
@@ -51,7 +51,7 @@ def tan_fix_figure(record: RunRecord) -> FigureItem | None:
         "Left: each radar-altimeter window's horizontal error against truth, at the ranges' mean time "
         "(the point-mass filter's own error) and carried to the window's end on the estimated velocity "
         "(the fix the navigator fused, whose velocity lag it models), with the fix's claim. Right: the "
-        "standard deviation of the terrain profile each window ranged, and why windows gave no fix. "
+        "standard deviation of the terrain profile each window ranged (less the altimeter noise), and why windows gave no fix. "
         "Shaded: GNSS denied.",
         fig,
     )
