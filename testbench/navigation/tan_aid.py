@@ -105,7 +105,8 @@ class TanAid(NavigationAid):
     model by more is dropped: trees, masts, water; a window that drops more than
     max_outlier_share of its ranges gives no fix: the match explains too little of what the
     radar saw; nor does one whose best match still misses the ranges by more than max_misfit
-    times the chi-square they should give, or whose height offset lies beyond
+    times the chi-square they should give (below that the fix's claim grows by the misfit),
+    or whose height offset lies beyond
     max_height_sigmas of what the navigator's height, the match and the DEM allow: ground the
     DEM does not hold, such as a town's roofs in the beam); min_samples,
     min_roughness_m (the window's terrain
@@ -131,7 +132,7 @@ class TanAid(NavigationAid):
         dem_correlation_m: float = pydantic.Field(0.0, ge=0)
         outlier_sigmas: float = pydantic.Field(4.0, gt=0)
         max_outlier_share: float = pydantic.Field(0.1, ge=0, le=1)
-        max_misfit: float = pydantic.Field(3.0, gt=0)
+        max_misfit: float = pydantic.Field(6.0, gt=0)
         max_height_sigmas: float = pydantic.Field(4.0, gt=0)
         min_samples: int = pydantic.Field(20, ge=1)
         min_roughness_m: float = pydantic.Field(1.5, ge=0)
@@ -297,8 +298,12 @@ class TanAid(NavigationAid):
         floor = p.fix_sigma_floor_m**2
         cov = np.zeros((3, 3))
         lag_var = 0.0 if p.velocity_lag == "model" else float(np.linalg.eigvalsh(cov_v).max()) * lag_s**2
-        cov[:2, :2] = post.cov_ne_m2 + np.eye(2) * (shape + floor + lag_var)
-        cov[2, 2] = post.var_dh_m2 + floor
+        # A match that fits worse than its model says (misfit above 1: the dead-reckoned track
+        # bent by a velocity error, a DEM error unlike the assumed one) is less sure than its
+        # density: its spread is scaled by the misfit (the Birge ratio).
+        inflate = max(post.misfit_per_dof, 1.0)
+        cov[:2, :2] = post.cov_ne_m2 * inflate + np.eye(2) * (shape + floor + lag_var)
+        cov[2, 2] = post.var_dh_m2 * inflate + floor
         pos = np.array([w.dr_ne_m[0] + post.mean_ne_m[0], w.dr_ne_m[1] + post.mean_ne_m[1], d_m - post.mean_dh_m])
         quality = float(post.mass_in_ellipse)
         fix = PositionFix(t_s, pos, cov, quality, source="tan", vel_lag_s=lag_s if p.velocity_lag == "model" else None)
