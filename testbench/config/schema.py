@@ -103,10 +103,11 @@ class MagneticAnomaly(pydantic.BaseModel):
 
 class DemError(pydantic.BaseModel):
     """The onboard DEM's error against the world's terrain (world/dem_error.py): a smooth
-    random field of RMS rms_m in patches about correlation_m across, added to what the vehicles
-    carry (world.reference_elevation, else world.elevation), never to the ground the sensors
-    see. seed: the field's own seed (the same onboard DEM in every run); None draws it from the
-    run's seed."""
+    random field of RMS rms_m whose correlation falls to exp(-1/2) at correlation_m (a Gaussian
+    correlation function's length, as the tan aid assumes in dem_correlation_m), added to
+    what the vehicles carry (world.reference_elevation, else world.elevation), never to the
+    ground the sensors see. seed: the field's own seed (the same onboard DEM in every run);
+    None draws it from the run's seed."""
 
     model_config = _CFG
     rms_m: float = Field(ge=0.0, le=1000.0)

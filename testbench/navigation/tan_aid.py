@@ -101,7 +101,8 @@ class TanAid(NavigationAid):
     grid would otherwise step farther than the DEM's own sample); n_sigma and min_half_width_m
     (grid half width: n_sigma of the navigator's horizontal sigmas, at least this);
     dem_sigma_m, dem_correlation_m (the onboard DEM's error against the ground the radar sees,
-    1 sigma, m, and the size of its patches, m; 0: white); outlier_sigmas (a range off the
+    1 sigma, m, and its Gaussian correlation length, m, as world.reference_elevation_error's
+    correlation_m; 0: white); outlier_sigmas (a range off the
     model by more is dropped: trees, masts, water; a window that drops more than
     max_outlier_share of its ranges gives no fix: the match explains too little of what the
     radar saw; nor does one whose best match still misses the ranges by more than max_misfit
