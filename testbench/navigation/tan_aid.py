@@ -44,12 +44,12 @@ class TanAttempt:
 
     t_s: float
     fix: PositionFix | None
-    mean_ne_m: tuple[float, float]
     samples: int
     roughness_m: float
-    mass_in_ellipse: float
-    edge_mass: float
-    reason: str
+    reason: str = ""
+    mean_ne_m: tuple[float, float] = (_NAN, _NAN)
+    mass_in_ellipse: float = _NAN
+    edge_mass: float = _NAN
     outliers: int = 0
     lag_s: float = _NAN
     misfit_per_dof: float = _NAN
@@ -86,7 +86,6 @@ class _Window:
     dr_ne_m: np.ndarray
     t_last_s: float
     v_last_ne_mps: np.ndarray
-    terrain_m: list[float] = field(default_factory=list)
     times_s: list[float] = field(default_factory=list)
     track_ne_m: list[np.ndarray] = field(default_factory=list)
     ranges: list[tuple[np.ndarray, np.ndarray, float, float]] = field(default_factory=list)
@@ -237,7 +236,6 @@ class TanAid(NavigationAid):
         sigma = math.hypot(self._noise_m, self._noise_fraction * r)  # the altimeter's own; the DEM's is the pmf's
         self._fold(w.pmf, w.dem, antenna, R_nb, r, sigma)
         w.ranges.append((antenna, R_nb, r, sigma))
-        w.terrain_m.append(-antenna[2] - r)  # the terrain's height under the track, as ranged
         w.times_s.append(t)
         w.track_ne_m.append(w.dr_ne_m.copy())
         if t - w.t0_s + 1e-9 < p.window_s:
@@ -252,8 +250,10 @@ class TanAid(NavigationAid):
         n = w.pmf.updates
         # The terrain profile's own spread: its SD as ranged, less the altimeter's noise in it
         # (flat ground ranged with 1.5 m of noise is no rougher than flat ground).
+        # (The terrain's height under the track, as ranged: the antenna's height less the range.)
+        profile_m = [-antenna[2] - r for antenna, _, r, _ in w.ranges]
         noise_var = float(np.mean([sig**2 for *_, sig in w.ranges])) if w.ranges else 0.0
-        roughness = math.sqrt(max(float(np.var(w.terrain_m)) - noise_var, 0.0)) if w.terrain_m else 0.0
+        roughness = math.sqrt(max(float(np.var(profile_m)) - noise_var, 0.0)) if profile_m else 0.0
         try:
             post = w.pmf.posterior(p.outlier_sigmas)
             half0, widen = float(w.pmf.offsets_m[-1]), 2.0
@@ -266,7 +266,7 @@ class TanAid(NavigationAid):
                 post = w.pmf.posterior(p.outlier_sigmas)
                 widen *= 2.0
         except ValueError:  # the whole search region off the onboard DEM
-            return None, TanAttempt(t_s, None, (_NAN, _NAN), n, roughness, _NAN, _NAN, "off the DEM")
+            return None, TanAttempt(t_s, None, n, roughness, "off the DEM")
         sig = math.sqrt(max(float(np.linalg.eigvalsh(post.cov_ne_m2).max()), 0.0))
         reason = ""
         if n < p.min_samples:
@@ -286,19 +286,19 @@ class TanAid(NavigationAid):
         elif sig > p.max_fix_sigma_m:
             reason = "wide"
         if reason:
-            return None, TanAttempt(t_s, None, (_NAN, _NAN), n, roughness, post.mass_in_ellipse, post.edge_mass, reason,
-                                    post.outliers, misfit_per_dof=post.misfit_per_dof)
+            return None, TanAttempt(t_s, None, n, roughness, reason, mass_in_ellipse=post.mass_in_ellipse,
+                                    edge_mass=post.edge_mass, outliers=post.outliers, misfit_per_dof=post.misfit_per_dof)
         # The offset found is the track's over the window, which a velocity error tilts: it
         # holds at the ranges' mean time, and the dead-reckoned track carried it from there to
         # t_s on the estimated velocity (PositionFix.vel_lag_s: the navigator fuses that lag).
         lag_s = t_s - float(np.mean(w.times_s))
         # The same velocity error bends the track about that mean: the ranges lie up to
         # sigma_v T / 2 off the constant offset the density assumes, a spread of sigma_v T / sqrt(12).
-        cov_v = np.asarray(est.cov_vel_ned_m2s2, float)[:2, :2]
-        shape = float(np.linalg.eigvalsh(cov_v).max()) * (t_s - w.t0_s) ** 2 / 12.0
+        var_v = float(np.linalg.eigvalsh(np.asarray(est.cov_vel_ned_m2s2, float)[:2, :2]).max())
+        shape = var_v * (t_s - w.t0_s) ** 2 / 12.0
         floor = p.fix_sigma_floor_m**2
         cov = np.zeros((3, 3))
-        lag_var = 0.0 if p.velocity_lag == "model" else float(np.linalg.eigvalsh(cov_v).max()) * lag_s**2
+        lag_var = 0.0 if p.velocity_lag == "model" else var_v * lag_s**2
         # A match that fits worse than its model says (misfit above 1: the dead-reckoned track
         # bent by a velocity error, a DEM error unlike the assumed one) is less sure than its
         # density: its spread is scaled by the misfit (the Birge ratio).
@@ -311,5 +311,6 @@ class TanAid(NavigationAid):
         # For scoring: the same offset on the track where it holds, at the ranges' mean time.
         i = int(np.searchsorted(w.times_s, t_s - lag_s))
         mean_ne = w.track_ne_m[min(i, len(w.track_ne_m) - 1)] + post.mean_ne_m
-        return fix, TanAttempt(t_s, fix, (float(mean_ne[0]), float(mean_ne[1])), n, roughness, quality, post.edge_mass, "",
-                               post.outliers, lag_s, post.misfit_per_dof)
+        return fix, TanAttempt(t_s, fix, n, roughness, mean_ne_m=(float(mean_ne[0]), float(mean_ne[1])),
+                               mass_in_ellipse=quality, edge_mass=post.edge_mass, outliers=post.outliers, lag_s=lag_s,
+                               misfit_per_dof=post.misfit_per_dof)

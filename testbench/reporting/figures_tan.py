@@ -7,7 +7,8 @@ import numpy as np
 
 from testbench.reporting.figures_common import denied_spans, new_figure, shade_spans
 from testbench.reporting.model import FigureItem
-from testbench.scoring.metrics_tan import tan_fix_errors_ne_m, tan_window_errors_ne_m
+from testbench.scoring.metrics_events import fix_errors_ne_m
+from testbench.scoring.metrics_tan import tan_window_errors_ne_m
 from testbench.scoring.record_io import RunRecord, column
 
 
@@ -20,7 +21,7 @@ def tan_fix_figure(record: RunRecord) -> FigureItem | None:
         return None
     t = column(tan, "t_s")
     fix = column(tan, "fix", dtype=bool).astype(bool)
-    e_fix = np.hypot(*tan_fix_errors_ne_m(tan).T)
+    e_fix = np.hypot(*fix_errors_ne_m(tan).T)
     e_win = np.hypot(*tan_window_errors_ne_m(record, tan).T)
     sigma = np.hypot(column(tan, "sigma_north_m"), column(tan, "sigma_east_m"))  # the claim's radial RMS
     fig = new_figure(11.0, 4.0)

@@ -22,17 +22,21 @@ from testbench.scoring.result import (
 from testbench.scoring.stats import error_stats, rate
 
 
+def fix_errors_ne_m(table: pd.DataFrame) -> np.ndarray:
+    """(n, 2) fix minus truth, north and east (m), of each row of a fix table (ismn, tan: the
+    columns of navigation.fix_columns and the engine's truth); NaN on rows without a fix."""
+    fix = column(table, "fix", dtype=bool).astype(bool)
+    e = np.stack([column(table, "fix_north_m") - column(table, "truth_north_m"),
+                  column(table, "fix_east_m") - column(table, "truth_east_m")], axis=1)
+    return np.where(fix[:, None], e, np.nan)
+
+
 def ismn_fix_errors(ismn: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
     """(horizontal error (m), error as % of AGL) of each row's fix vs truth, shapes (n,).
 
     NaN on rows without a fix.
     """
-    fix = column(ismn, "fix", dtype=bool).astype(bool)
-    eh = np.hypot(
-        column(ismn, "fix_north_m") - column(ismn, "truth_north_m"),
-        column(ismn, "fix_east_m") - column(ismn, "truth_east_m"),
-    )
-    eh = np.where(fix, eh, np.nan)
+    eh = np.hypot(*fix_errors_ne_m(ismn).T)
     agl = column(ismn, "truth_height_agl_m")
     with np.errstate(divide="ignore", invalid="ignore"):
         pct = np.where(agl > MIN_AGL_FOR_PCT_M, 100.0 * eh / agl, np.nan)

@@ -72,13 +72,19 @@ def _position_covariance(tel: pd.DataFrame):
     return sn2, se2, sd2, cne, np.where(ok, det, 1.0), ok
 
 
+def ne_quadratic_form(en, ee, sn2, se2, cne, det):
+    """e^T P^-1 e of north-east errors (en, ee, m) against P = [[sn2, cne], [cne, se2]] (m^2)
+    of determinant det (m^4), by the closed-form 2x2 inverse; arrays broadcast together."""
+    return (se2 * en * en - 2.0 * cne * en * ee + sn2 * ee * ee) / det
+
+
 def position_nees(tel: pd.DataFrame) -> np.ndarray:
     """Position NEES per row (3 dof), NaN where the covariance is unusable, shape (n,)."""
     e = position_errors_ned_m(tel)
     sn2, se2, sd2, cne, det, ok = _position_covariance(tel)
     en, ee, ed = e[:, 0], e[:, 1], e[:, 2]
-    # e_h^T P_h^-1 e_h with the closed-form 2x2 inverse, plus the independent down term.
-    horiz = (se2 * en * en - 2.0 * cne * en * ee + sn2 * ee * ee) / det
+    # The north-east block's NEES plus the independent down term.
+    horiz = ne_quadratic_form(en, ee, sn2, se2, cne, det)
     nees = horiz + ed * ed / np.where(ok, sd2, 1.0)
     return np.where(ok, nees, np.nan)
 

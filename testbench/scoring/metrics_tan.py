@@ -6,17 +6,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from testbench.scoring.metrics_events import fix_errors_ne_m
+from testbench.scoring.metrics_nav import ne_quadratic_form
 from testbench.scoring.record_io import RunRecord, column
 from testbench.scoring.result import TanMetrics
 from testbench.scoring.stats import chi_square_stats, error_stats, rate
-
-
-def tan_fix_errors_ne_m(tan) -> np.ndarray:
-    """(n, 2) fix minus truth, north and east (m) per row; NaN on rows without a fix."""
-    fix = column(tan, "fix", dtype=bool).astype(bool)
-    e = np.stack([column(tan, "fix_north_m") - column(tan, "truth_north_m"),
-                  column(tan, "fix_east_m") - column(tan, "truth_east_m")], axis=1)
-    return np.where(fix[:, None], e, np.nan)
 
 
 def tan_window_errors_ne_m(record: RunRecord, tan) -> np.ndarray:
@@ -38,13 +32,6 @@ def tan_window_errors_ne_m(record: RunRecord, tan) -> np.ndarray:
     return out
 
 
-def _horizontal_nees(e_ne: np.ndarray, sn: np.ndarray, se: np.ndarray, c_ne: np.ndarray) -> np.ndarray:
-    """(n,) e^T P^-1 e of errors e_ne (n, 2) against claims sigma north / east (n,) and their
-    covariance c_ne (n,)."""
-    P = np.stack([np.stack([sn * sn, c_ne], -1), np.stack([c_ne, se * se], -1)], -2)
-    return np.einsum("ni,ni->n", e_ne, np.linalg.solve(P, e_ne[..., None])[..., 0])
-
-
 def compute_tan(record: RunRecord) -> TanMetrics | None:
     """TanMetrics of the record's tan table."""
     tan = record.event("tan")
@@ -52,12 +39,13 @@ def compute_tan(record: RunRecord) -> TanMetrics | None:
         return None
     fix = column(tan, "fix", dtype=bool).astype(bool)
     accepted = column(tan, "accepted", dtype=bool).astype(bool) & fix
-    e_ne = tan_fix_errors_ne_m(tan)[fix]
+    e_ne = fix_errors_ne_m(tan)[fix]
     e_win = tan_window_errors_ne_m(record, tan)[fix]
     e_d = (column(tan, "fix_down_m") - column(tan, "truth_down_m"))[fix]
     sn, se = column(tan, "sigma_north_m")[fix], column(tan, "sigma_east_m")[fix]
     c_ne = column(tan, "cov_ne_m2")[fix] if "cov_ne_m2" in tan.columns else np.zeros(len(sn))
-    nees = _horizontal_nees(e_win, sn, se, c_ne) if len(sn) else np.zeros(0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        nees = ne_quadratic_form(e_win[:, 0], e_win[:, 1], sn * sn, se * se, c_ne, sn * sn * se * se - c_ne * c_ne)
     nees = nees[np.isfinite(nees)]
     reasons = tan["reason"].astype(str)[~fix] if "reason" in tan.columns else []
     rejected = {str(k): int(v) for k, v in (reasons.value_counts().items() if len(reasons) else [])}

@@ -118,20 +118,21 @@ class TerrainPmf:
         return C
 
     def _log_likelihood(self, keep: np.ndarray):
-        """(log L (n*n,), b / c (n*n,), 1 / c, residuals e0 (m, n*n)) over the kept ranges;
-        offsets whose prediction left the DEM get -inf."""
+        """(log L (n*n,), b / c (n*n,), 1 / c, residuals e0 (m, n*n), C's diagonal (m,), m^2)
+        over the kept ranges; offsets whose prediction left the DEM get -inf."""
         r_hat = np.asarray(self._r_hat)[keep].reshape(int(keep.sum()), -1)
         e0 = np.asarray(self._ranges)[keep][:, None] - r_hat
         off_dem = ~np.isfinite(e0).all(axis=0)
         e0 = np.where(np.isfinite(e0), e0, 0.0)
-        cf = cho_factor(self._covariance(keep), lower=True)
+        C = self._covariance(keep)
+        cf = cho_factor(C, lower=True)
         W = cho_solve(cf, e0)
         ones_w = cho_solve(cf, np.ones(e0.shape[0]))
         a = np.einsum("kj,kj->j", e0, W)
         b = W.sum(axis=0)
         c = float(ones_w.sum())
         log_l = -0.5 * (a - b * b / c)
-        return np.where(off_dem, -np.inf, log_l), b / c, 1.0 / c, e0
+        return np.where(off_dem, -np.inf, log_l), b / c, 1.0 / c, e0, np.diag(C)
 
     def posterior(self, outlier_sigmas: float = 4.0) -> PmfPosterior:
         """The density's mean, covariance and shape (PmfPosterior). Raises ValueError before
@@ -140,21 +141,21 @@ class TerrainPmf:
         if n_all == 0:
             raise ValueError("no ranges")
         keep = np.ones(n_all, bool)
-        log_l, dh_j, var_dh, e0 = self._log_likelihood(keep)
+        log_l, dh_j, var_dh, e0, var_k = self._log_likelihood(keep)
         if not np.isfinite(log_l).any():
             raise ValueError("every offset of the grid predicts ranges off the onboard DEM")
         # Ranges off the model, judged at the offset that fits best robustly: each offset's
         # residuals less their median (a robust dh), scored by a quadratic cut at outlier_sigmas
         # (a few ranges 60 m short would otherwise pull the Gaussian fit's best offset away and
         # make the good ranges look bad there).
-        sig = np.sqrt(np.diag(self._covariance(keep)))[:, None]
+        sig = np.sqrt(var_k)[:, None]
         z = (e0 - np.median(e0, axis=0)) / sig
         score = np.where(np.isfinite(log_l), np.minimum(z * z, outlier_sigmas**2).sum(axis=0), np.inf)
         j = int(np.argmin(score))
         bad = np.abs(z[:, j]) > outlier_sigmas
         if bad.any() and (~bad).sum() >= 3:
             keep = ~bad
-            log_l, dh_j, var_dh, _ = self._log_likelihood(keep)
+            log_l, dh_j, var_dh, _, _ = self._log_likelihood(keep)
         w = np.exp(log_l - log_l.max())
         w /= w.sum()
         w_ne = w.reshape(self._dn.shape)
