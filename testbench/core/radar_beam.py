@@ -65,3 +65,16 @@ def first_return_m(antenna_ned_m: np.ndarray, R_nb: np.ndarray, rays_b: np.ndarr
     Returns (...): inf where no ray meets the ground below the antenna."""
     dirs = np.asarray(rays_b, float) @ np.asarray(R_nb, float).T  # body -> NED
     return ray_ranges_m(antenna_ned_m, dirs, height_m, iterations).min(axis=-1)
+
+
+def nearest_return_ne_m(antenna_ned_m: np.ndarray, R_nb: np.ndarray, rays_b: np.ndarray, height_m: HeightFn,
+                        iterations: int = 4) -> np.ndarray:
+    """(2,) north, east (m) of the ground point the nearest return comes from, for one antenna
+    position (3,) NED m; the antenna's own north, east where no ray meets the ground."""
+    a = np.asarray(antenna_ned_m, float)
+    dirs = np.asarray(rays_b, float) @ np.asarray(R_nb, float).T
+    t = ray_ranges_m(a, dirs, height_m, iterations)  # (k,)
+    i = int(np.argmin(t))
+    if not np.isfinite(t[i]):
+        return a[:2].copy()
+    return a[:2] + t[i] * dirs[i, :2]

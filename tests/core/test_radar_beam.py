@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from testbench.core.radar_beam import beam_rays_b, first_return_m, ray_ranges_m
+from testbench.core.radar_beam import beam_rays_b, first_return_m, nearest_return_ne_m, ray_ranges_m
 from testbench.core.rotations import euler_to_dcm
 
 
@@ -55,6 +55,25 @@ def test_wide_beam_over_a_slope_reads_less_than_the_vertical_clearance():
     d = np.array([[math.sin(math.radians(20.0)), 0.0, math.cos(math.radians(20.0))]])
     t = float(ray_ranges_m(antenna, d, ramp, iterations=30)[0])
     assert math.isclose(t, 300.0 / (math.cos(math.radians(20.0)) + slope * math.sin(math.radians(20.0))), rel_tol=1e-9)
+
+
+def test_nearest_return_point_lies_up_the_slope_at_the_beams_edge():
+    # Ground rising north at 0.3: the nearest ground in a 20 deg beam is the north-most ray's
+    # (the perpendicular to the ramp lies 16.7 deg off vertical, inside the cone, but the beam
+    # is sampled by its rays: the 20 deg ray north is the nearest of them), 300 m below.
+    slope = 0.3
+
+    def ramp(n, e):
+        return slope * np.asarray(n, float) + 0.0 * np.asarray(e, float)
+
+    antenna = np.array([100.0, -50.0, -300.0])
+    ne = nearest_return_ne_m(antenna, np.eye(3), beam_rays_b(math.radians(20.0)), ramp, iterations=30)
+    t = 300.0 / (math.cos(math.radians(20.0)) + slope * math.sin(math.radians(20.0))) - slope * 100.0 / (
+        math.cos(math.radians(20.0)) + slope * math.sin(math.radians(20.0)))
+    np.testing.assert_allclose(ne, [100.0 + t * math.sin(math.radians(20.0)), -50.0], atol=1e-6)
+    # Flat ground: the boresight's point, straight below.
+    np.testing.assert_allclose(nearest_return_ne_m(antenna, np.eye(3), beam_rays_b(math.radians(20.0)), _flat(0.0)),
+                               [100.0, -50.0], atol=1e-9)
 
 
 def test_ground_above_the_antenna_gives_no_return():

@@ -15,7 +15,8 @@ the beam's half angle of the vertical: at 20 deg the range grows by 0.94-1 m per
 residuals e_j = r - r_hat_j - dh 1 are Gaussian with covariance
     C = diag(sigma_k^2) + sigma_dem^2 K,  K_kl = exp(-d_kl^2 / (2 L^2)),
 sigma_k the altimeter's white noise, sigma_dem the onboard DEM's error, d_kl the distance between
-the k-th and l-th points of the track and L the DEM error's correlation length. A DEM errs in
+the ground points the k-th and l-th ranges came from (their nearest returns, found from the
+dead-reckoned track at the grid's centre) and L the DEM error's correlation length. A DEM errs in
 patches: taking its error as white would count one patch's error once per range and make the
 density far narrower than the match is good (false peaks taken for true ones). dh has a flat
 prior and is integrated out exactly (the likelihood is Gaussian in it):
@@ -35,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve
 
-from testbench.core.radar_beam import HeightFn, first_return_m
+from testbench.core.radar_beam import HeightFn, first_return_m, nearest_return_ne_m
 
 
 @dataclass(frozen=True)
@@ -84,7 +85,7 @@ class TerrainPmf:
         self._r_hat: list[np.ndarray] = []  # (n, n) per range
         self._ranges: list[float] = []
         self._sigmas: list[float] = []
-        self._track_ne: list[np.ndarray] = []
+        self._return_ne: list[np.ndarray] = []  # (2,) per range: where its echo came from, NE m
 
     @property
     def updates(self) -> int:
@@ -100,7 +101,11 @@ class TerrainPmf:
         self._r_hat.append(first_return_m(pos, R_nb, rays_b, height_m, iterations))
         self._ranges.append(float(range_m))
         self._sigmas.append(float(sigma_m))
-        self._track_ne.append(a[:2].copy())
+        # The DEM errs where the echo comes from, not below the antenna: the nearest return lies
+        # up to h tan(half angle) aside (290 m at 800 m and 20 deg, about a correlation length),
+        # and ranges from one ridge share its error wherever the vehicle was. The return point
+        # at the grid's centre stands for all offsets (a shift moves them all alike).
+        self._return_ne.append(nearest_return_ne_m(a, R_nb, rays_b, height_m, iterations))
 
     def _covariance(self, keep: np.ndarray) -> np.ndarray:
         """C (m, m) over the kept ranges: their white noise plus the DEM's correlated error."""
@@ -109,7 +114,7 @@ class TerrainPmf:
         s = np.maximum(np.asarray(self._sigmas)[keep], 0.01)
         C = np.diag(s**2)
         if self.dem_sigma_m > 0:
-            p = np.asarray(self._track_ne)[keep]
+            p = np.asarray(self._return_ne)[keep]
             if self.dem_correlation_m > 0:
                 d2 = ((p[:, None, :] - p[None, :, :]) ** 2).sum(-1)
                 C += self.dem_sigma_m**2 * np.exp(-0.5 * d2 / self.dem_correlation_m**2)

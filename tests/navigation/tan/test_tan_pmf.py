@@ -76,3 +76,29 @@ def test_range_outliers_do_not_move_the_fix():
     spoilt = _fly(dem, (10.0, 15.0), 0.0, seed=4, outliers=True).posterior()
     np.testing.assert_allclose(spoilt.mean_ne_m, clean.mean_ne_m, atol=1.0)
     np.testing.assert_allclose(clean.mean_ne_m, [10.0, 15.0], atol=2.0)
+
+
+def test_ranges_echoed_by_one_hilltop_share_its_dem_error():
+    # A lone round hill (150 m high, 100 m Gaussian radius) under a track 800 m up that runs
+    # 300 m either side of it: every echo comes from the hill's crown (within 60 m of its top:
+    # the beam's rays), so the ranges share the error the DEM has there. The height offset, which
+    # the ranges' mean error sets, is then known little better than that error (var 7.2 m^2 of
+    # sigma_dem^2 = 9), although the track's ends lie two correlation lengths apart: the DEM errs
+    # where the echo comes from, not below the antenna.
+    n = 200
+    north = 1000.0 - (np.arange(n) + 0.5) * GSD_M
+    east = -1000.0 + (np.arange(n) + 0.5) * GSD_M
+    N, E = np.meshgrid(north, east, indexing="ij")
+    z = 150.0 * np.exp(-0.5 * (N**2 + E**2) / 100.0**2)
+    dem = LocalRaster(z.astype(np.float32), np.ones(z.shape, bool), 1000.0, -1000.0, GSD_M)
+    height = _height_fn(dem)
+    rays, R_nb = beam_rays_b(math.radians(20.0)), np.eye(3)
+    sigma_dem, L = 3.0, 300.0
+    pmf = TerrainPmf(half_width_m=20.0, cells=5, dem_sigma_m=sigma_dem, dem_correlation_m=L)
+    for k in range(61):
+        antenna = np.array([-300.0 + 10.0 * k, 0.0, -800.0])
+        pmf.update(antenna, R_nb, rays, float(first_return_m(antenna, R_nb, rays, height)), 0.3, height)
+    post = pmf.posterior()
+    assert post.var_dh_m2 > 0.75 * sigma_dem**2
+    # Taken below the antenna instead, the ends' errors would correlate by exp(-2) only, and the
+    # sixty-one ranges would claim the height to 4.8 m^2.
