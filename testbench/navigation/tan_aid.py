@@ -201,7 +201,12 @@ class TanAid(NavigationAid):
         cells = min(max(p.cells, 2 * math.ceil(half_m / self._dem_gsd_m) + 1), max(p.max_cells, p.cells))
         n0, e0 = (float(x) for x in start_ne_m)
         r = half_m + reach_m
-        dem = self.dem.read_local(n0 - r, n0 + r, e0 - r, e0 + r, self._dem_gsd_m)
+        # On the DEM's own posting (edges at whole samples from the origin, as the terrain's
+        # tiles are): a window cut anywhere else is resampled, which smooths the ridges by up to
+        # 3.7 m (desert) and gives the onboard DEM an error the likelihood does not model.
+        g = self._dem_gsd_m
+        dem = self.dem.read_local(math.floor((n0 - r) / g) * g, math.ceil((n0 + r) / g) * g,
+                                  math.floor((e0 - r) / g) * g, math.ceil((e0 + r) / g) * g, g)
         return TerrainPmf(half_m, cells, p.dem_sigma_m, p.dem_correlation_m), dem
 
     def _fold(self, pmf: TerrainPmf, dem: LocalRaster, antenna, R_nb, range_m: float, sigma_m: float) -> None:

@@ -13,6 +13,7 @@ from testbench.core.errors import InputError
 from testbench.core.interfaces import BuildContext
 from testbench.core.messages import NavEstimate
 from testbench.sensors.fakes import ORIGIN, FakeWorld, make_truth
+from testbench.world.raster import sample_bilinear
 from testbench.world.spec import open_elevation
 
 CTX = BuildContext("uav0", ("uav0",), ORIGIN, physics_rate_hz=120.0)
@@ -147,3 +148,21 @@ def test_a_navigator_further_off_than_it_claims_is_found_on_a_wider_grid(desert)
     _, narrow_attempts, _ = _fly(_aid(radar, desert, max_widen=1.0), _radar(), FakeWorld(terrain=desert.height_m),
                                  sigma_m=5.0, offset_ne_m=np.array([-120.0, 90.0]))
     assert narrow_attempts[0].reason == "at grid edge"
+
+
+def test_the_onboard_dem_is_read_on_its_own_posting(desert):
+    # A window starting anywhere reads the DEM on its own samples, not resampled onto a grid cut
+    # at the window's start: where it carries the very DEM the radar sees, the two agree exactly.
+    # (Cut at the start, resampling smoothed this desert's ridges by 0.2-0.35 m RMS, up to 3.7 m:
+    # an error of the onboard DEM that its error model does not hold.)
+    aid = _aid(_radar(), desert)
+    _, raster = aid._grid(60.0, np.array([-1234.567, 321.89]), 400.0)
+    g = desert.native_gsd_m
+    assert raster.gsd_m == g
+    for edge in (raster.north0_m, raster.east0_m):
+        assert abs(edge / g - round(edge / g)) < 1e-9
+    rng = np.random.default_rng(0)
+    pn, pe = -1234.567 + rng.uniform(-400, 400, 2000), 321.89 + rng.uniform(-400, 400, 2000)
+    onboard, ok = sample_bilinear(raster, pn, pe)
+    assert ok.all()
+    np.testing.assert_allclose(onboard, desert.height_m(pn, pe), atol=1e-3)
