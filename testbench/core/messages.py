@@ -150,10 +150,11 @@ class PositionFix:
     image alone gives, independent of the navigator's attitude, and its 1-sigma; None when the
     producer does not offer one.
 
-    vel_lag_s, tau (s): the producer found the position tau s before t_s and carried it to t_s
-    on the navigator's own estimated velocity (terrain-aided navigation: a window's mean offset
-    from a dead-reckoned track), so its error holds tau (v_est - v_true); a navigator fuses it
-    with H_v = -tau. None: no such term.
+    vel_lag_s, tau (s) or a (3, 3) matrix L (s, NED): the producer found the position tau s
+    before t_s and carried it to t_s on the navigator's own estimated velocity (terrain-aided
+    navigation: a window's offset from a dead-reckoned track), so its error holds
+    tau (v_est - v_true), or L (v_est - v_true) where the lag differs by axis; a navigator fuses
+    it with H_v = -tau (-L). None: no such term.
     """
 
     t_s: float
@@ -165,7 +166,7 @@ class PositionFix:
     cov_given_att_ned_m2: np.ndarray | None = None
     heading_rad: float | None = None
     heading_sigma_rad: float | None = None
-    vel_lag_s: float | None = None
+    vel_lag_s: float | np.ndarray | None = None
 
 
 @dataclass(frozen=True, slots=True)

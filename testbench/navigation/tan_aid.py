@@ -12,9 +12,11 @@ starts afresh from the filter's estimate then, so the fixes share no ranges (eac
 look at other ground), the same contract as a scene-matching fix.
 
 Each window is one row of events/tan.parquet (its truth columns filled by the engine: this
-module never sees truth), with the fix and, for scoring the density itself, the offset placed
-on the dead-reckoned track at the ranges' mean time (mean_north_m, mean_east_m: the fix less
-its velocity lag). Over flat ground TAN cannot fix: the rows then say "flat".
+module never sees truth), with the fix, its velocity lag (lag_nn_s ... lag_ee_s: the 2 x 2
+horizontal matrix the navigator fuses; vel_lag_s its diagonal's mean) and the window's start,
+from which scoring takes the density's own error; mean_north_m, mean_east_m place the offset on
+the dead-reckoned track at t_s - vel_lag_s. Over flat ground TAN cannot fix: the rows then say
+"flat".
 """
 
 from __future__ import annotations
@@ -52,6 +54,8 @@ class TanAttempt:
     edge_mass: float = _NAN
     outliers: int = 0
     lag_s: float = _NAN
+    lag_ne_s: np.ndarray | None = None  # (2, 2) the fix's velocity lag, north-east (s)
+    window_start_s: float = _NAN
     misfit_per_dof: float = _NAN
 
     def event_rows(self, vehicle_id: str) -> list[tuple[str, dict]]:
@@ -61,6 +65,9 @@ class TanAttempt:
             t_s=self.t_s, vehicle_id=vehicle_id, fix=fix is not None, accepted=None, **position_fix_columns(fix),
             cov_ne_m2=float(cov[0, 1]) if cov is not None else _NAN,
             vel_lag_s=float(self.lag_s) if fix is not None else _NAN,
+            **{f"lag_{a}{b}_s": (float(self.lag_ne_s[i, j]) if fix is not None and self.lag_ne_s is not None else _NAN)
+               for i, a in enumerate("ne") for j, b in enumerate("ne")},
+            window_start_s=float(self.window_start_s),
             mean_north_m=float(self.mean_ne_m[0]), mean_east_m=float(self.mean_ne_m[1]),
             samples=int(self.samples), roughness_m=float(self.roughness_m),
             mass_in_ellipse=float(self.mass_in_ellipse), edge_mass=float(self.edge_mass), outliers=int(self.outliers),
@@ -115,8 +122,9 @@ class TanAid(NavigationAid):
     max_tilt_deg (ranges taken banked or pitched beyond it are skipped: the beam looks sideways);
     max_widen (a window whose density presses against its grid's edge is searched again, on
     its own ranges, on a grid twice as wide, up to this factor); velocity_lag: "model" hands the fix's velocity lag to the
-    navigator (PositionFix.vel_lag_s, which ins_ekf fuses), "inflate" adds the lag times the
-    navigator's velocity sigma to the fix's claim instead, for a navigator that ignores
+    navigator (PositionFix.vel_lag_s, a 2 x 2 horizontal matrix, which ins_ekf fuses), "inflate"
+    adds the lag (its largest singular value) times the navigator's velocity sigma to the fix's
+    claim instead, for a navigator that ignores
     vel_lag_s (20 runs of tan_radalt_300m: see docs/measurements.md, terrain-aided navigation).
     """
 
@@ -293,17 +301,32 @@ class TanAid(NavigationAid):
         if reason:
             return None, TanAttempt(t_s, None, n, roughness, reason, mass_in_ellipse=post.mass_in_ellipse,
                                     edge_mass=post.edge_mass, outliers=post.outliers, misfit_per_dof=post.misfit_per_dof)
-        # The offset found is the track's over the window, which a velocity error tilts: it
-        # holds at the ranges' mean time, and the dead-reckoned track carried it from there to
-        # t_s on the estimated velocity (PositionFix.vel_lag_s: the navigator fuses that lag).
-        lag_s = t_s - float(np.mean(w.times_s))
-        # The same velocity error bends the track about that mean: the ranges lie up to
-        # sigma_v T / 2 off the constant offset the density assumes, a spread of sigma_v T / sqrt(12).
+        # The offset found is the track's over the window, which a velocity error e_v tilts:
+        # the true offset drifts as o(t) = o(t_s) + (t_s - t) e_v, and the match weighs each
+        # range by the slopes it saw (PmfPosterior.lag_weights), so the offset found is
+        # o(t_s) + L e_v with L = sum_k W_k (t_s - t_k), a 2 x 2 lag (s): where the terrain spoke
+        # and along which axis, not the ranges' mean epoch for both (t_s - mean where the grid
+        # cannot give the slopes). The fix carries it to t_s on the dead-reckoned track, so it
+        # errs by L e_v: the navigator fuses that (PositionFix.vel_lag_s, horizontal; the heights
+        # are the navigator's own, not dead-reckoned, so the vertical has no lag).
+        times = np.asarray(w.times_s)
+        if post.lag_weights is None:
+            lag_ne = np.eye(2) * (t_s - float(times.mean()))
+        else:
+            lag_ne = np.einsum("kij,k->ij", post.lag_weights, t_s - times)
+        lag_s = 0.5 * float(np.trace(lag_ne))  # the two axes' mean lag: for the row and "inflate"
         var_v = float(np.linalg.eigvalsh(np.asarray(est.cov_vel_ned_m2s2, float)[:2, :2]).max())
-        shape = var_v * (t_s - w.t0_s) ** 2 / 12.0
         floor = p.fix_sigma_floor_m**2
         cov = np.zeros((3, 3))
-        lag_var = 0.0 if p.velocity_lag == "model" else var_v * lag_s**2
+        if p.velocity_lag == "model":
+            # The navigator takes the drift's whole effect on the fix through the lag (H_v = -L).
+            shape = lag_var = 0.0
+        else:
+            # A navigator blind to the lag: its term as noise, and the track's bend about the
+            # window's middle (the ranges up to sigma_v T / 2 off a constant offset: a spread of
+            # sigma_v T / sqrt(12)).
+            lag_var = var_v * float(np.linalg.norm(lag_ne, 2)) ** 2
+            shape = var_v * (t_s - w.t0_s) ** 2 / 12.0
         # A match that fits worse than its model says (misfit above 1: the dead-reckoned track
         # bent by a velocity error, a DEM error unlike the assumed one) is less sure than its
         # density: its spread is scaled by the misfit (the Birge ratio).
@@ -312,10 +335,14 @@ class TanAid(NavigationAid):
         cov[2, 2] = post.var_dh_m2 * inflate + floor
         pos = np.array([w.dr_ne_m[0] + post.mean_ne_m[0], w.dr_ne_m[1] + post.mean_ne_m[1], d_m - post.mean_dh_m])
         quality = float(post.mass_in_ellipse)
-        fix = PositionFix(t_s, pos, cov, quality, source="tan", vel_lag_s=lag_s if p.velocity_lag == "model" else None)
-        # For scoring: the same offset on the track where it holds, at the ranges' mean time.
-        i = int(np.searchsorted(w.times_s, t_s - lag_s))
-        mean_ne = w.track_ne_m[min(i, len(w.track_ne_m) - 1)] + post.mean_ne_m
+        lag_ned = np.zeros((3, 3))
+        lag_ned[:2, :2] = lag_ne
+        fix = PositionFix(t_s, pos, cov, quality, source="tan", vel_lag_s=lag_ned if p.velocity_lag == "model" else None)
+        # For the table: the same offset on the track at the axes' mean lag (interpolated: the
+        # ranges come every 0.2 s, 5 m apart at 25 m/s); scoring uses the full lag (metrics_tan).
+        track = np.asarray(w.track_ne_m)
+        mean_ne = np.array([np.interp(t_s - lag_s, times, track[:, 0]), np.interp(t_s - lag_s, times, track[:, 1])]) \
+            + post.mean_ne_m
         return fix, TanAttempt(t_s, fix, n, roughness, mean_ne_m=(float(mean_ne[0]), float(mean_ne[1])),
                                mass_in_ellipse=quality, edge_mass=post.edge_mass, outliers=post.outliers, lag_s=lag_s,
-                               misfit_per_dof=post.misfit_per_dof)
+                               lag_ne_s=lag_ne, window_start_s=float(w.t0_s), misfit_per_dof=post.misfit_per_dof)

@@ -13,8 +13,8 @@ from testbench.scoring.record_io import RunRecord, column
 
 
 def tan_fix_figure(record: RunRecord) -> FigureItem | None:
-    """Horizontal error of each window (at the ranges' mean time, and as the fix the navigator
-    got) against its claimed 1-sigma and 3-sigma, and each window's terrain roughness with the
+    """Horizontal error of each window (the match's own, the fix less its modelled velocity lag,
+    and as the fix the navigator got) against its claimed 1-sigma and 3-sigma, and each window's terrain roughness with the
     reason of the windows that gave no fix."""
     tan = record.event("tan")
     if tan is None or len(tan) == 0:
@@ -29,7 +29,7 @@ def tan_fix_figure(record: RunRecord) -> FigureItem | None:
     vid = str(tan["vehicle_id"].iloc[0]) if "vehicle_id" in tan.columns else None
     for a in (ax, axr):
         shade_spans(a, denied_spans(record, vid) if vid is not None else [])
-    ax.plot(t[fix], e_win[fix], "o", ms=4, color="C0", label="window (at its ranges' mean time)")
+    ax.plot(t[fix], e_win[fix], "o", ms=4, color="C0", label="window (the fix less its velocity lag)")
     ax.plot(t[fix], e_fix[fix], "x", ms=4, color="C1", label="fix as fused (at the window's end)")
     ax.plot(t[fix], sigma[fix], "-", lw=0.9, color="0.4", label="claimed (radial 1 sigma)")
     ax.plot(t[fix], 3.0 * sigma[fix], "--", lw=0.9, color="0.4", label="claimed x 3")
@@ -49,9 +49,9 @@ def tan_fix_figure(record: RunRecord) -> FigureItem | None:
     axr.legend(fontsize=7)
     return FigureItem(
         "Terrain-aided navigation fixes",
-        "Left: each radar-altimeter window's horizontal error against truth, at the ranges' mean time "
-        "(the point-mass filter's own error) and carried to the window's end on the estimated velocity "
-        "(the fix the navigator fused, whose velocity lag it models), with the fix's claim. Right: the "
+        "Left: each radar-altimeter window's horizontal error against truth: the point-mass filter's own "
+        "(the fix less the velocity lag the navigator models, taken with the window's mean velocity error) "
+        "and the fix as fused at the window's end, with the fix's claim. Right: the "
         "standard deviation of the terrain profile each window ranged (less the altimeter noise), and why windows gave no fix. "
         "Shaded: GNSS denied.",
         fig,

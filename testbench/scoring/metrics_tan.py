@@ -14,15 +14,41 @@ from testbench.scoring.stats import chi_square_stats, error_stats, rate
 
 
 def tan_window_errors_ne_m(record: RunRecord, tan) -> np.ndarray:
-    """(n, 2) the window's offset placed at the ranges' mean time (mean_north_m, mean_east_m at
-    t_s - vel_lag_s) minus the truth then, north and east (m), the truth interpolated in the
-    vehicle's telemetry; NaN on rows without a fix. The density's own error: the fix less the
-    velocity lag that the navigator models (PositionFix.vel_lag_s)."""
+    """(n, 2) the density's own error, north and east (m): the fix less the velocity lag the
+    navigator models, against the truth at the fix's time; NaN on rows without a fix.
+
+    With the lag matrix (lag_nn_s ... lag_ee_s, L) the fix holds L (v_est - v_true) besides the
+    match's own error; that term is taken out with the window's mean velocity error (the
+    navigator's velocity less the truth over the telemetry rows from window_start_s to just
+    before the fix, which the dead reckoning integrated). Records before it (one scalar lag)
+    place the offset on the dead-reckoned track at t_s - vel_lag_s (mean_north_m, mean_east_m)
+    against the truth then."""
     out = np.full((len(tan), 2), np.nan)
+    vids = tan["vehicle_id"].astype(str).to_numpy()
+    t_fix = column(tan, "t_s")
+    if {"lag_nn_s", "window_start_s"} <= set(tan.columns):
+        lag = np.stack([np.stack([column(tan, "lag_nn_s"), column(tan, "lag_ne_s")], -1),
+                        np.stack([column(tan, "lag_en_s"), column(tan, "lag_ee_s")], -1)], -2)  # (n, 2, 2)
+        t0 = column(tan, "window_start_s")
+        fix_ne = np.stack([column(tan, "fix_north_m"), column(tan, "fix_east_m")], -1)
+        for vid in np.unique(vids):
+            tel = record.vehicle_telemetry(vid)
+            tt = column(tel, "t_s")
+            truth_ne = np.stack([column(tel, "truth_north_m"), column(tel, "truth_east_m")], -1)
+            e_v = np.stack([column(tel, "nav_vn_mps") - column(tel, "truth_vn_mps"),
+                            column(tel, "nav_ve_mps") - column(tel, "truth_ve_mps")], -1)
+            for r in np.flatnonzero(vids == vid):
+                if not np.isfinite(fix_ne[r]).all():
+                    continue
+                win = (tt >= t0[r]) & (tt < t_fix[r] - 1e-9)
+                if not win.any():
+                    continue
+                truth_at_fix = [np.interp(t_fix[r], tt, truth_ne[:, i]) for i in range(2)]
+                out[r] = fix_ne[r] - truth_at_fix - lag[r] @ e_v[win].mean(axis=0)
+        return out
     if not {"mean_north_m", "vel_lag_s"} <= set(tan.columns):
         return out
-    t_mean = column(tan, "t_s") - column(tan, "vel_lag_s")
-    vids = tan["vehicle_id"].astype(str).to_numpy()
+    t_mean = t_fix - column(tan, "vel_lag_s")
     for vid in np.unique(vids):
         tel = record.vehicle_telemetry(vid)
         sel = vids == vid

@@ -200,8 +200,9 @@ class TanMetrics(_Section):
     fix_rate = fixes / windows; accept_rate = fixes the filter accepted / fixes;
     horizontal_error_m: |fix - truth| north-east (m, with CEP) over the fixes as the navigator
     got them, at the window's end (they hold the velocity lag the navigator models,
-    PositionFix.vel_lag_s); window_error_m: the same offset at the ranges' mean time, where it
-    holds, against the truth then (the point-mass filter's own error); vertical_error_m:
+    PositionFix.vel_lag_s); window_error_m: the fix less that lag's term (the lag matrix times
+    the window's mean velocity error), against the truth (the point-mass filter's own error;
+    metrics_tan.tan_window_errors_ne_m); vertical_error_m:
     |fix - truth| down (m); horizontal_nees: window_error's NEES against the fixes' horizontal
     claims (2 dof: mean 2 when they claim what they err by); rejected: reason -> windows
     without a fix ("flat", "ambiguous", "wide", "at grid edge", "few ranges")."""

@@ -75,7 +75,7 @@ def nominal_pos_ned(ekf, origin: GeodeticOrigin) -> np.ndarray:
 
 
 def position_ned(ekf, pos_ned_m, cov_ned_m2, origin: GeodeticOrigin, att_sensitivity_m_per_rad=None,
-                 appearance_gain: float = 0.0, vel_lag_s: float | None = None):
+                 appearance_gain: float = 0.0, vel_lag_s=None):
     """Position fix in NED at the scenario origin (scene matching): the true position plus the
     error successive fixes share (the b_fix state, origin NED) plus white noise of covariance
     cov_ned_m2; H = [R_on 0 ... I].
@@ -88,8 +88,9 @@ def position_ned(ekf, pos_ned_m, cov_ned_m2, origin: GeodeticOrigin, att_sensiti
     also holds g b_app, the appearance error scaled by how strongly this fix shows it
     (ErrorStateEKF appearance_sigma_m); H[:, i_app] = g I. Ignored without those states.
 
-    vel_lag_s tau (s): the fix was carried over its last tau seconds on the filter's estimated
-    velocity (PositionFix.vel_lag_s), so it holds tau (v_est - v_true) = -tau dv: H_v = -tau R_on."""
+    vel_lag_s tau (s), or a (3, 3) lag matrix L (s, origin NED): the fix was carried over its
+    last tau seconds on the filter's estimated velocity (PositionFix.vel_lag_s), so it holds
+    tau (v_est - v_true) = -tau dv: H_v = -tau R_on (-L R_on)."""
     ins = ekf.ins
     y = np.asarray(pos_ned_m, float) - nominal_pos_ned(ekf, origin) - ekf.b_fix
     H = np.zeros((3, ekf.n))
@@ -100,8 +101,9 @@ def position_ned(ekf, pos_ned_m, cov_ned_m2, origin: GeodeticOrigin, att_sensiti
         H[:, ekf.i_app] = appearance_gain * np.eye(3)
     if att_sensitivity_m_per_rad is not None:
         H[:, IA] = -np.asarray(att_sensitivity_m_per_rad, float)
-    if vel_lag_s:
-        H[:, IV] = -float(vel_lag_s) * H[:, IP]
+    if vel_lag_s is not None:
+        lag = np.asarray(vel_lag_s, float)
+        H[:, IV] = -(lag @ H[:, IP] if lag.ndim == 2 else float(lag) * H[:, IP])
     return y, H, np.asarray(cov_ned_m2, float)
 
 

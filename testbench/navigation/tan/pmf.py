@@ -51,7 +51,11 @@ class PmfPosterior:
     was cut off there); used, outliers: ranges in the density and ranges dropped;
     misfit_per_dof: the best offset's chi-square (a_j - b_j^2 / c) over its used - 1 degrees of
     freedom: about 1 when the ranges are what the model says they are, far above it when the
-    ground is not what the DEM holds (a town, a forest) or the offset is not on the grid."""
+    ground is not what the DEM holds (a town, a forest) or the offset is not on the grid;
+    lag_weights (N, 2, 2): how a drift of the true offset over the window enters the offset
+    found: o_hat = sum_k W_k o(t_k) for an offset o(t) that drifts linearly (sum_k W_k = I; 0 for
+    ranges dropped; None where the grid cannot give the terrain's slopes): see
+    TerrainPmf._lag_weights."""
 
     mean_ne_m: np.ndarray
     cov_ne_m2: np.ndarray
@@ -62,6 +66,7 @@ class PmfPosterior:
     used: int
     outliers: int
     misfit_per_dof: float
+    lag_weights: np.ndarray | None = None
 
 
 class TerrainPmf:
@@ -179,4 +184,41 @@ class TerrainPmf:
         edge = float(w_ne[0].sum() + w_ne[-1].sum() + w_ne[1:-1, 0].sum() + w_ne[1:-1, -1].sum())
         used = int(keep.sum())
         misfit = float(-2.0 * log_l.max()) / max(used - 1, 1)  # log L_j = -1/2 (a_j - b_j^2 / c)
-        return PmfPosterior(np.array([mn, me]), cov, mh, vh, inside, edge, used, n_all - used, misfit)
+        weights = self._lag_weights(keep, int(np.argmax(log_l)))
+        return PmfPosterior(np.array([mn, me]), cov, mh, vh, inside, edge, used, n_all - used, misfit, weights)
+
+    def _lag_weights(self, keep: np.ndarray, j_best: int) -> np.ndarray | None:
+        """(N, 2, 2) matrices W_k, sum_k W_k = I, such that the offset found is sum_k W_k o_k
+        when the true offset differs from range to range (o_k = o(t_k), drifting with a velocity
+        error over the window).
+
+        Linearised at the best offset, the ranges see the offset through the terrain's slope
+        under their echoes, G (m, 2) = d r_hat / d offset (central differences on the grid),
+        and the generalised least squares with dh integrated out gives
+            o_hat = F^-1 G' P y,  F = G' P G,  P = C^-1 - C^-1 1 1' C^-1 / c,
+        with y_k = G_k o_k + noise: W_k = F^-1 (P G)_k G_k' (2 x 2). Ranges over steep ground
+        weigh more, flat stretches nothing, and each axis by the slopes along it: over a ridge
+        running north the east offset comes from the ranges over the ridge, the north offset
+        from where the ridge ends. So a drift does not hold at the ranges' mean epoch, nor at one
+        epoch for both axes, and a north drift can move the east offset found. None where the best
+        offset lies on the grid's edge or F is singular."""
+        n = self._dn.shape[0]
+        i, l = divmod(j_best, n)
+        if not (0 < i < n - 1 and 0 < l < n - 1):
+            return None
+        r_hat = np.asarray(self._r_hat)[keep]  # (m, n, n)
+        G = np.stack([(r_hat[:, i + 1, l] - r_hat[:, i - 1, l]), (r_hat[:, i, l + 1] - r_hat[:, i, l - 1])],
+                     axis=1) / (2.0 * self.step_m)
+        if not np.isfinite(G).all():
+            return None
+        cf = cho_factor(self._covariance(keep), lower=True)
+        CiG = cho_solve(cf, G)
+        Ci1 = cho_solve(cf, np.ones(G.shape[0]))
+        PG = CiG - np.outer(Ci1, Ci1 @ G) / float(Ci1.sum())  # P G (P symmetric)
+        F = G.T @ PG
+        if np.linalg.cond(F) > 1e8:
+            return None
+        B = PG @ np.linalg.inv(F).T  # (m, 2): row k is (F^-1 G' P)[:, k]
+        w = np.zeros((len(self._ranges), 2, 2))
+        w[keep] = np.einsum("ki,kj->kij", B, G)
+        return w

@@ -600,6 +600,26 @@ def test_position_fix_with_a_velocity_lag_is_fused_with_it():
     assert lagged < plain.estimate().vel_ned_mps[0] - 0.01
 
 
+def test_position_fix_with_a_velocity_lag_matrix_is_fused_with_it():
+    """A lag that differs by axis (terrain-aided navigation: each axis of a window's offset
+    holds where the slopes along it were, and a north drift can move the east offset): the fix
+    holds L (v_est - v_true), H_v = -L, cross terms included."""
+    from testbench.navigation.ins.error_model import IFX, IP, IV
+
+    true_ned = geodesy.geodetic_to_ned(LAT0, LON0, H0, ORIGIN.lat_rad, ORIGIN.lon_rad, ORIGIN.alt_m)
+    cov = np.diag([4.0, 4.0, 1.0])
+    lag = np.array([[8.0, 3.0, 0.0], [-2.0, 12.0, 0.0], [0.0, 0.0, 0.0]])
+    nav = _converged_static_nav()
+    P = nav.covariance()
+    info = nav.correct(PositionFix(10.0, true_ned + np.array([6.0, 0.0, 0.0]), cov, 0.9, source="tan", vel_lag_s=lag))
+    H = np.zeros((3, P.shape[0]))
+    H[:, IP] = np.eye(3)
+    H[:, IFX] = np.eye(3)
+    H[:, IV] = -lag
+    R = cov - np.diag(nav.fix_error_sigma_ned_m**2)
+    np.testing.assert_allclose(info.innovation_cov, H @ P @ H.T + R, rtol=1e-6, atol=1e-9)
+
+
 def test_sampled_alignment_error_is_drawn_from_p0():
     """initial_error 'sampled': the starting state is displaced by a draw from the filter's own
     P0 (position, velocity, attitude), so that a Monte Carlo NEES test starts consistent;

@@ -67,9 +67,17 @@ def test_a_window_over_relief_gives_a_fix_near_the_truth(desert):
     assert np.all(np.abs(err[:2]) < 3.0 * sigma[:2]), (err, sigma)
     assert np.hypot(*err[:2]) < 6.0  # the estimate it started from was 40 m off
     assert abs(err[2]) < 3.0 * sigma[2]
-    assert fix.source == "tan" and fix.vel_lag_s == pytest.approx(10.0, abs=0.2)
+    # The velocity lag: a 2 x 2 horizontal matrix (the match weighs each range by the slopes it
+    # saw: here 8.4 / 10.0 s on the diagonal, 2.5-3.8 s across), none in the vertical (the heights
+    # are the navigator's own); about the window's half length, 10 s, for terrain alike throughout.
+    lag = np.asarray(fix.vel_lag_s)
+    assert fix.source == "tan" and lag.shape == (3, 3) and np.all(lag[2] == 0.0) and np.all(lag[:, 2] == 0.0)
+    assert 6.0 < lag[0, 0] < 14.0 and 6.0 < lag[1, 1] < 14.0
     (table, row), = attempts[0].event_rows("uav0")
     assert table == "tan" and row["fix"] and row["reason"] == "" and np.isnan(row["truth_north_m"])
+    assert row["vel_lag_s"] == pytest.approx(0.5 * (lag[0, 0] + lag[1, 1]))
+    assert (row["lag_nn_s"], row["lag_ne_s"], row["lag_en_s"], row["lag_ee_s"]) == pytest.approx(lag[:2, :2].ravel())
+    assert row["window_start_s"] == pytest.approx(0.0)
 
 
 def test_flat_ground_gives_no_fix(desert):

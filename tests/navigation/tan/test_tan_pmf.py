@@ -102,3 +102,40 @@ def test_ranges_echoed_by_one_hilltop_share_its_dem_error():
     assert post.var_dh_m2 > 0.75 * sigma_dem**2
     # Taken below the antenna instead, the ends' errors would correlate by exp(-2) only, and the
     # sixty-one ranges would claim the height to 4.8 m^2.
+
+
+def _half_flat_dem() -> LocalRaster:
+    """The hills of _dem() north of -750 m, flat ground south of it."""
+    hills = _dem()
+    north = hills.north0_m - (np.arange(hills.data.shape[0]) + 0.5) * GSD_M
+    z = np.where((north >= -750.0)[:, None], hills.data, 0.0).astype(np.float32)
+    return LocalRaster(z, hills.valid, hills.north0_m, hills.east0_m, GSD_M)
+
+
+def test_the_offset_found_follows_a_drift_where_the_terrain_spoke():
+    # A 20 s track, its first half over flat ground and its second over hills; the dead
+    # reckoning drifts off the truth by 0.6 m/s north and -0.4 m/s east (a velocity error), so
+    # the true offset changes by 12 m and 8 m over the window. The flat half says nothing, and
+    # each axis holds where the slopes along it were: the offset found is sum_k W_k o(t_k)
+    # (within the linearisation), not the offset at the ranges' mean epoch.
+    dem = _half_flat_dem()
+    height = _height_fn(dem)
+    rays, R_nb = beam_rays_b(math.radians(20.0)), np.eye(3)
+    rng = np.random.default_rng(4)
+    v_err = np.array([0.6, -0.4])
+    t = np.arange(101) * 0.2
+    pmf = TerrainPmf(half_width_m=40.0, cells=81, dem_sigma_m=0.0, dem_correlation_m=0.0)
+    offsets = np.array([20.0, -10.0]) + np.outer(t - t.mean(), v_err)  # truth - dead reckoning
+    for k in range(len(t)):
+        dr = np.array([-1000.0 + 5.0 * k, 100.0, -300.0])
+        truth = dr + np.r_[offsets[k], 0.0]
+        r = float(first_return_m(truth, R_nb, rays, height)) + 0.3 * rng.standard_normal()
+        pmf.update(dr, R_nb, rays, r, 0.3, height)
+    post = pmf.posterior()
+    W = post.lag_weights
+    assert W is not None and W.shape == (101, 2, 2)
+    np.testing.assert_allclose(W.sum(axis=0), np.eye(2), atol=1e-9)
+    assert np.abs(W[t < 9.0].sum(axis=0)).max() < 0.02  # the flat half (its last beams reach the hills)
+    predicted = np.einsum("kij,kj->i", W, offsets)
+    assert np.hypot(*(post.mean_ne_m - predicted)) < 1.0  # measured 0.7 m
+    assert np.hypot(*(post.mean_ne_m - offsets[50])) > 2.5  # the mean epoch's offset: 3.9 m off
