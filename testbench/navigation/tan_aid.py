@@ -345,4 +345,5 @@ class TanAid(NavigationAid):
             + post.mean_ne_m
         return fix, TanAttempt(t_s, fix, n, roughness, mean_ne_m=(float(mean_ne[0]), float(mean_ne[1])),
                                mass_in_ellipse=quality, edge_mass=post.edge_mass, outliers=post.outliers, lag_s=lag_s,
-                               lag_ne_s=lag_ne, window_start_s=float(w.t0_s), misfit_per_dof=post.misfit_per_dof)
+                               lag_ne_s=lag_ne, window_start_s=float(w.t0_s),
+                               misfit_per_dof=post.misfit_per_dof)

@@ -13,9 +13,9 @@ from testbench.scoring.record_io import RunRecord, column
 
 
 def tan_fix_figure(record: RunRecord) -> FigureItem | None:
-    """Horizontal error of each window (the match's own, the fix less its modelled velocity lag,
-    and as the fix the navigator got) against its claimed 1-sigma and 3-sigma, and each window's terrain roughness with the
-    reason of the windows that gave no fix."""
+    """Horizontal error of each window (the match's own, the fix less its velocity lag term, and
+    as the fix the navigator got) against its claimed 1-sigma and 3-sigma, and each window's
+    terrain roughness with the reason of the windows that gave no fix."""
     tan = record.event("tan")
     if tan is None or len(tan) == 0:
         return None

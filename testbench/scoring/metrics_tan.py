@@ -14,8 +14,9 @@ from testbench.scoring.stats import chi_square_stats, error_stats, rate
 
 
 def tan_window_errors_ne_m(record: RunRecord, tan) -> np.ndarray:
-    """(n, 2) the density's own error, north and east (m): the fix less the velocity lag the
-    navigator models, against the truth at the fix's time; NaN on rows without a fix.
+    """(n, 2) the density's own error, north and east (m): the fix less its velocity lag term
+    (which a navigator with velocity_lag "model" fuses), against the truth at the fix's time;
+    NaN on rows without a fix.
 
     With the lag matrix (lag_nn_s ... lag_ee_s, L) the fix holds L (v_est - v_true) besides the
     match's own error; that term is taken out with the window's mean velocity error (the
