@@ -174,3 +174,17 @@ def test_the_onboard_dem_is_read_on_its_own_posting(desert):
     onboard, ok = sample_bilinear(raster, pn, pe)
     assert ok.all()
     np.testing.assert_allclose(onboard, desert.height_m(pn, pe), atol=1e-3)
+
+
+def test_velocity_lag_inflate_claims_the_lag_instead_of_handing_it_over(desert):
+    # For a navigator that ignores PositionFix.vel_lag_s: no lag on the fix, and its claim grown
+    # by the lag times the navigator's velocity sigma (0.1 m/s here) and the track's bend.
+    radar = _radar()
+    world = FakeWorld(terrain=desert.height_m)
+    (modelled,), _, _ = _fly(_aid(radar, desert), radar, world)
+    (inflated,), _, _ = _fly(_aid(_radar(), desert, velocity_lag="inflate"), _radar(), world)
+    assert inflated.vel_lag_s is None and np.asarray(modelled.vel_lag_s).shape == (3, 3)
+    np.testing.assert_allclose(inflated.pos_ned_m, modelled.pos_ned_m)
+    grown = np.diag(inflated.cov_ned_m2)[:2] - np.diag(modelled.cov_ned_m2)[:2]
+    lag_norm = np.linalg.norm(np.asarray(modelled.vel_lag_s)[:2, :2], 2)
+    np.testing.assert_allclose(grown, 0.01 * (lag_norm**2 + 20.0**2 / 12.0), rtol=0.05)
