@@ -57,14 +57,18 @@ def ray_ranges_m(antenna_ned_m: np.ndarray, dirs_ned: np.ndarray, height_m: Heig
     return np.where(ok & (t > 0.0), t, np.inf)
 
 
+def _rays_ned(rays_b: np.ndarray, R_nb: np.ndarray) -> np.ndarray:
+    """(k, 3) the beam's rays in NED from body rays_b (k, 3) and R_nb (3, 3) body->NED."""
+    return np.asarray(rays_b, float) @ np.asarray(R_nb, float).T
+
+
 def first_return_m(antenna_ned_m: np.ndarray, R_nb: np.ndarray, rays_b: np.ndarray, height_m: HeightFn,
                    iterations: int = 4) -> np.ndarray:
     """Range (m) of the nearest ground inside the beam: the minimum over its rays.
 
     antenna_ned_m (..., 3), NED m; R_nb (3, 3) body->NED; rays_b (k, 3) from beam_rays_b.
     Returns (...): inf where no ray meets the ground below the antenna."""
-    dirs = np.asarray(rays_b, float) @ np.asarray(R_nb, float).T  # body -> NED
-    return ray_ranges_m(antenna_ned_m, dirs, height_m, iterations).min(axis=-1)
+    return ray_ranges_m(antenna_ned_m, _rays_ned(rays_b, R_nb), height_m, iterations).min(axis=-1)
 
 
 def nearest_return_ne_m(antenna_ned_m: np.ndarray, R_nb: np.ndarray, rays_b: np.ndarray, height_m: HeightFn,
@@ -72,7 +76,7 @@ def nearest_return_ne_m(antenna_ned_m: np.ndarray, R_nb: np.ndarray, rays_b: np.
     """(2,) north, east (m) of the ground point the nearest return comes from, for one antenna
     position (3,) NED m; the antenna's own north, east where no ray meets the ground."""
     a = np.asarray(antenna_ned_m, float)
-    dirs = np.asarray(rays_b, float) @ np.asarray(R_nb, float).T
+    dirs = _rays_ned(rays_b, R_nb)
     t = ray_ranges_m(a, dirs, height_m, iterations)  # (k,)
     i = int(np.argmin(t))
     if not np.isfinite(t[i]):

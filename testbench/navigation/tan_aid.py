@@ -315,7 +315,6 @@ class TanAid(NavigationAid):
         else:
             lag_ne = np.einsum("kij,k->ij", post.lag_weights, t_s - times)
         lag_s = 0.5 * float(np.trace(lag_ne))  # the two axes' mean lag: for the row and "inflate"
-        var_v = float(np.linalg.eigvalsh(np.asarray(est.cov_vel_ned_m2s2, float)[:2, :2]).max())
         floor = p.fix_sigma_floor_m**2
         cov = np.zeros((3, 3))
         if p.velocity_lag == "model":
@@ -325,6 +324,7 @@ class TanAid(NavigationAid):
             # A navigator blind to the lag: its term as noise, and the track's bend about the
             # window's middle (the ranges up to sigma_v T / 2 off a constant offset: a spread of
             # sigma_v T / sqrt(12)).
+            var_v = float(np.linalg.eigvalsh(np.asarray(est.cov_vel_ned_m2s2, float)[:2, :2]).max())
             lag_var = var_v * float(np.linalg.norm(lag_ne, 2)) ** 2
             shape = var_v * (t_s - w.t0_s) ** 2 / 12.0
         # A match that fits worse than its model says (misfit above 1: the dead-reckoned track

@@ -128,8 +128,8 @@ class TerrainPmf:
         return C
 
     def _log_likelihood(self, keep: np.ndarray):
-        """(log L (n*n,), b / c (n*n,), 1 / c, residuals e0 (m, n*n), C's diagonal (m,), m^2)
-        over the kept ranges; offsets whose prediction left the DEM get -inf."""
+        """(log L (n*n,), b / c (n*n,), 1 / c, residuals e0 (m, n*n), C's diagonal (m,), m^2,
+        C's Cholesky factor) over the kept ranges; offsets whose prediction left the DEM get -inf."""
         r_hat = np.asarray(self._r_hat)[keep].reshape(int(keep.sum()), -1)
         e0 = np.asarray(self._ranges)[keep][:, None] - r_hat
         off_dem = ~np.isfinite(e0).all(axis=0)
@@ -142,7 +142,7 @@ class TerrainPmf:
         b = W.sum(axis=0)
         c = float(ones_w.sum())
         log_l = -0.5 * (a - b * b / c)
-        return np.where(off_dem, -np.inf, log_l), b / c, 1.0 / c, e0, np.diag(C)
+        return np.where(off_dem, -np.inf, log_l), b / c, 1.0 / c, e0, np.diag(C), cf
 
     def posterior(self, outlier_sigmas: float = 4.0) -> PmfPosterior:
         """The density's mean, covariance and shape (PmfPosterior). Raises ValueError before
@@ -151,7 +151,7 @@ class TerrainPmf:
         if n_all == 0:
             raise ValueError("no ranges")
         keep = np.ones(n_all, bool)
-        log_l, dh_j, var_dh, e0, var_k = self._log_likelihood(keep)
+        log_l, dh_j, var_dh, e0, var_k, cf = self._log_likelihood(keep)
         if not np.isfinite(log_l).any():
             raise ValueError("every offset of the grid predicts ranges off the onboard DEM")
         # Ranges off the model, judged at the offset that fits best robustly: each offset's
@@ -165,7 +165,7 @@ class TerrainPmf:
         bad = np.abs(z[:, j]) > outlier_sigmas
         if bad.any() and (~bad).sum() >= 3:
             keep = ~bad
-            log_l, dh_j, var_dh, _, _ = self._log_likelihood(keep)
+            log_l, dh_j, var_dh, _, _, cf = self._log_likelihood(keep)
         w = np.exp(log_l - log_l.max())
         w /= w.sum()
         w_ne = w.reshape(self._dn.shape)
@@ -184,10 +184,10 @@ class TerrainPmf:
         edge = float(w_ne[0].sum() + w_ne[-1].sum() + w_ne[1:-1, 0].sum() + w_ne[1:-1, -1].sum())
         used = int(keep.sum())
         misfit = float(-2.0 * log_l.max()) / max(used - 1, 1)  # log L_j = -1/2 (a_j - b_j^2 / c)
-        weights = self._lag_weights(keep, int(np.argmax(log_l)))
+        weights = self._lag_weights(keep, int(np.argmax(log_l)), cf)
         return PmfPosterior(np.array([mn, me]), cov, mh, vh, inside, edge, used, n_all - used, misfit, weights)
 
-    def _lag_weights(self, keep: np.ndarray, j_best: int) -> np.ndarray | None:
+    def _lag_weights(self, keep: np.ndarray, j_best: int, cf) -> np.ndarray | None:
         """(N, 2, 2) matrices W_k, sum_k W_k = I, such that the offset found is sum_k W_k o_k
         when the true offset differs from range to range (o_k = o(t_k), drifting with a velocity
         error over the window).
@@ -201,7 +201,8 @@ class TerrainPmf:
         running north the east offset comes from the ranges over the ridge, the north offset
         from where the ridge ends. So a drift does not hold at the ranges' mean epoch, nor at one
         epoch for both axes, and a north drift can move the east offset found. None where the best
-        offset lies on the grid's edge or F is singular."""
+        offset lies on the grid's edge or F is singular. cf: C's Cholesky factor over the kept
+        ranges (from _log_likelihood)."""
         n = self._dn.shape[0]
         i, l = divmod(j_best, n)
         if not (0 < i < n - 1 and 0 < l < n - 1):
@@ -211,7 +212,6 @@ class TerrainPmf:
                      axis=1) / (2.0 * self.step_m)
         if not np.isfinite(G).all():
             return None
-        cf = cho_factor(self._covariance(keep), lower=True)
         CiG = cho_solve(cf, G)
         Ci1 = cho_solve(cf, np.ones(G.shape[0]))
         PG = CiG - np.outer(Ci1, Ci1 @ G) / float(Ci1.sum())  # P G (P symmetric)
