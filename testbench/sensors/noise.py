@@ -30,6 +30,13 @@ FLICKER_CORR_TIMES_S = 0.3 * 10.0 ** np.arange(6)
 _FLICKER_VAR_PER_B2 = math.log(10.0) / math.pi
 
 
+def flicker_sigma(bias_instability: float) -> float:
+    """Standard deviation (q) of each Gauss-Markov process of the flicker bank for a bias
+    instability B (q): B sqrt(ln 10 / pi), which gives the bank the flicker spectrum and the
+    Allan floor of the module docstring."""
+    return float(bias_instability) * math.sqrt(_FLICKER_VAR_PER_B2)
+
+
 class TriadNoise:
     """Additive random error of one 3-axis sensor sampled every dt_s.
 
@@ -43,7 +50,7 @@ class TriadNoise:
             raise ValueError("dt_s must be positive")
         self.dt_s = float(dt_s)
         self.white_sigma = float(white_density) / math.sqrt(self.dt_s)
-        self.gm_sigma = float(bias_instability) * math.sqrt(_FLICKER_VAR_PER_B2)
+        self.gm_sigma = flicker_sigma(bias_instability)
         self.gm_a = np.exp(-self.dt_s / FLICKER_CORR_TIMES_S)  # (K,) AR(1) coefficients
         self.gm_drive = self.gm_sigma * np.sqrt(1.0 - self.gm_a**2)  # keeps the variance stationary
         self.rw_step = float(rate_random_walk) * math.sqrt(self.dt_s)

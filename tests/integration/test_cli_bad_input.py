@@ -81,6 +81,8 @@ TAN = REPO / "scenarios" / "tan_radalt_300m.yaml"
         (TAN, ["vehicles.uav0.aids.tan.cells=60"], r"aids\[0\]\.params\.cells: .*must be odd"),
         (RACETRACK, ["vehicles.uav0.aids=[{type: tan}]"],
          r"aids\[tan\]\.params\.sensor: no sensor named 'radar_altimeter' on this vehicle \(have: ideal_state\)"),
+        (TAN, ["vehicles.uav0.navigation.params.imu.flicker_fit_band_s=[100, 5]"],
+         r"navigation\.params\.imu: .*flicker_fit_band_s \[100\.0, 5\.0\]: expected \[shortest, longest\]"),
     ],
 )
 def test_terrain_aided_navigation_misconfigured(tmp_path, scenario, overrides, pattern):

@@ -31,7 +31,9 @@ from testbench.navigation.ins.consistency import error_state
 from testbench.navigation.ins.ekf import ErrorStateEKF
 from testbench.navigation.ins.error_model import IA, IBA, IBB, IBG, IDS, IFX, IGN, IP, IV, IW
 from testbench.navigation.ins.gnss_guard import GnssSpoofGuard
-from testbench.navigation.ins.imu_noise import imu_noise_from_datasheet, preset_datasheet, preset_names, preset_scale_error
+from testbench.navigation.ins.imu_noise import (
+    fit_to_flicker, imu_noise_from_datasheet, preset_datasheet, preset_names, preset_scale_error,
+)
 from testbench.navigation.ins.magnetic import OnboardMagneticModel
 from testbench.navigation.ins.reacquire import update_or_reset
 from testbench.navigation.ins.settings import InsEkfParams
@@ -74,6 +76,8 @@ class InsEkfNavigator(Navigator):
             **sheet, gyro_bias_tau_s=params.imu.gyro_bias_tau_s,
             accel_bias_tau_s=params.imu.accel_bias_tau_s,
         )
+        if params.imu.flicker_fit_band_s is not None:
+            self.noise = fit_to_flicker(self.noise, params.imu.flicker_fit_band_s)
         down = params.fix_error_sigma_m if params.fix_error_sigma_down_m is None else params.fix_error_sigma_down_m
         self.fix_error_sigma_ned_m = np.array([params.fix_error_sigma_m, params.fix_error_sigma_m, down])
         """(3,) m: steady-state sigma of the shared fix error per axis (north, east, down)."""

@@ -46,6 +46,20 @@ class ImuNoiseParams(ParamsModel):
     accel_rrw_ug_sqrt_h: float | None = pydantic.Field(None, ge=0)
     gyro_bias_tau_s: float = pydantic.Field(300.0, gt=0)
     accel_bias_tau_s: float = pydantic.Field(300.0, gt=0)
+    flicker_fit_band_s: tuple[pydantic.PositiveFloat, pydantic.PositiveFloat] | None = None
+    """Coasting times (s, shortest and longest) over which the filter's white noise and bias
+    random walk are refitted to drift as the sensor's flicker bias does (imu_noise.
+    fit_to_flicker): for a filter that goes tens of seconds between aids, such as terrain-aided
+    navigation's one fix per 20 s window. None: the datasheet's figures as they are, one
+    Gauss-Markov bias of sigma B and the tau above, which over 10-60 s expects half the drift
+    (a quarter of the variance) a flicker floor of B gives. Needs imu_bias_model random_walk."""
+
+    @pydantic.model_validator(mode="after")
+    def _band_ordered(self) -> "ImuNoiseParams":
+        if self.flicker_fit_band_s is not None and not self.flicker_fit_band_s[0] < self.flicker_fit_band_s[1]:
+            raise ValueError(f"flicker_fit_band_s {list(self.flicker_fit_band_s)}: expected [shortest, longest] "
+                             "coasting time in s, shortest first")
+        return self
 
 
 class DragAiding(ParamsModel):
@@ -191,6 +205,13 @@ class InsEkfParams(ParamsModel):
     imu_bias_model: Literal["random_walk", "gauss_markov"] = "random_walk"
     """How the filter carries the IMU biases (see ErrorStateEKF): random_walk holds the
     turn-on bias it has estimated; gauss_markov lets estimates decay towards zero."""
+
+    @pydantic.model_validator(mode="after")
+    def _flicker_fit_needs_random_walk(self) -> "InsEkfParams":
+        if self.imu.flicker_fit_band_s is not None and self.imu_bias_model != "random_walk":
+            raise ValueError("imu.flicker_fit_band_s fits the bias random walk of imu_bias_model "
+                             f"random_walk; got imu_bias_model {self.imu_bias_model!r}")
+        return self
     initial_sigma: InitialSigmas = InitialSigmas()
     initial_error: Literal["none", "sampled"] = "none"
     """The error the pre-flight alignment leaves in the starting position, velocity and
