@@ -96,21 +96,20 @@ class TerrainPmf:
     def updates(self) -> int:
         return len(self._ranges)
 
-    def update(self, antenna_ned_m, R_nb, rays_b, range_m: float, sigma_m: float, height_m: HeightFn,
-               iterations: int = 3) -> None:
+    def update(self, antenna_ned_m, R_nb, rays_b, range_m: float, sigma_m: float, height_m: HeightFn) -> None:
         """Take one range (m) measured from the dead-reckoned antenna position antenna_ned_m
         (3,) NED m, attitude R_nb (3, 3, body->NED), beam rays_b (k, 3), the altimeter's white
         1-sigma sigma_m, over the onboard terrain height_m (NaN off the DEM)."""
         a = np.asarray(antenna_ned_m, float)
         pos = np.stack([a[0] + self._dn, a[1] + self._de, np.full(self._dn.shape, a[2])], axis=-1)
-        self._r_hat.append(first_return_m(pos, R_nb, rays_b, height_m, iterations))
+        self._r_hat.append(first_return_m(pos, R_nb, rays_b, height_m))
         self._ranges.append(float(range_m))
         self._sigmas.append(float(sigma_m))
         # The DEM errs where the echo comes from, not below the antenna: the nearest return lies
         # up to h tan(half angle) aside (290 m at 800 m and 20 deg, about a correlation length),
         # and ranges from one ridge share its error wherever the vehicle was. The return point
         # at the grid's centre stands for all offsets (a shift moves them all alike).
-        self._return_ne.append(nearest_return_ne_m(a, R_nb, rays_b, height_m, iterations))
+        self._return_ne.append(nearest_return_ne_m(a, R_nb, rays_b, height_m))
 
     def _covariance(self, keep: np.ndarray) -> np.ndarray:
         """C (m, m) over the kept ranges: their white noise plus the DEM's correlated error."""
