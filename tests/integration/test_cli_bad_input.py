@@ -83,6 +83,8 @@ TAN = REPO / "scenarios" / "tan_radalt_300m.yaml"
          r"aids\[tan\]\.params\.sensor: no sensor named 'radar_altimeter' on this vehicle \(have: ideal_state\)"),
         (TAN, ["vehicles.uav0.navigation.params.imu.flicker_fit_band_s=[100, 5]"],
          r"navigation\.params\.imu: .*flicker_fit_band_s \[100\.0, 5\.0\]: expected \[shortest, longest\]"),
+        (TAN, ["vehicles.uav0.navigation.params.imu_bias_model=gauss_markov"],
+         r"navigation\.params: .*imu\.flicker_fit_band_s fits the bias random walk of imu_bias_model random_walk"),
     ],
 )
 def test_terrain_aided_navigation_misconfigured(tmp_path, scenario, overrides, pattern):
