@@ -58,28 +58,26 @@ def ray_ranges_m(antenna_ned_m: np.ndarray, dirs_ned: np.ndarray, height_m: Heig
     # Start from the terrain below the antenna: exact over flat ground.
     h0 = height_m(p[..., 0], p[..., 1])  # (..., 1)
     t = (-h0 - p[..., 2]) / dd  # (..., k)
-    # Whole arrays while most rays still move (the first two or three steps over hills)...
-    for step in range(1, max_iterations + 1):
-        tp = np.maximum(t, 0.0)
-        t_new = (-height_m(p[..., 0] + tp * d[:, 0], p[..., 1] + tp * d[:, 1]) - p[..., 2]) / dd
-        moving = np.abs(t_new - t) > tol_m  # NaN (off the model) stops
-        t = t_new
-        if np.count_nonzero(moving) * 4 <= moving.size:
-            break
-    # ...then only the rays still moving, as flat views (a steep face needs ten or more steps).
     shape = t.shape
     t = t.reshape(-1)
-    live = np.flatnonzero(moving)
     pn, pe, pd = (np.broadcast_to(p[..., i], shape).reshape(-1) for i in range(3))
     dn, de, dz = (np.broadcast_to(x, shape).reshape(-1) for x in (d[:, 0], d[:, 1], dd))
-    for _ in range(step, max_iterations):
-        if live.size == 0:
-            break
+    # Every ray (a slice: views, no gathers) while most still move, the first two or three steps
+    # over hills; then only the rays still moving (a steep face needs ten or more steps).
+    live: slice | np.ndarray = slice(None)
+    for _ in range(max_iterations):
         tp = np.maximum(t[live], 0.0)
         t_new = (-height_m(pn[live] + tp * dn[live], pe[live] + tp * de[live]) - pd[live]) / dz[live]
-        moved = np.abs(t_new - t[live])
+        moving = np.abs(t_new - t[live]) > tol_m  # NaN (off the model) stops
         t[live] = t_new
-        live = live[moved > tol_m]
+        if isinstance(live, slice):
+            if np.count_nonzero(moving) * 4 > moving.size:
+                continue
+            live = np.flatnonzero(moving)
+        else:
+            live = live[moving]
+        if live.size == 0:
+            break
     t = t.reshape(shape)
     return np.where(ok & (t > 0.0), t, np.inf)
 

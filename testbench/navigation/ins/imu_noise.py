@@ -130,9 +130,10 @@ def flicker_drift_sigma(white_density: float, bias_instability: float, rate_rand
     from testbench.sensors.noise import FLICKER_CORR_TIMES_S, flicker_sigma  # noqa: PLC0415 (sensors own the model)
 
     t = np.asarray(horizon_s, float)
+    sigma = flicker_sigma(bias_instability)
     var = white_density**2 * t + rate_random_walk**2 * t**3 / 3.0
     for tau_s in FLICKER_CORR_TIMES_S:
-        var = var + _gm_drift_var(flicker_sigma(bias_instability), float(tau_s), t)
+        var = var + _gm_drift_var(sigma, float(tau_s), t)
     return np.sqrt(var)
 
 
