@@ -86,6 +86,34 @@ class RadarAltSample:
 
 
 @dataclass(frozen=True, slots=True)
+class OpticalFlowSample:
+    """Optical-flow sensor output: how far the ground moved in its image over the last interval.
+
+    t_s: the later frame's time; dt_s: the interval between the two frames (s); flow_c_rad (2,):
+    the ground's move in the later frame relative to the earlier, in normalised image
+    coordinates (camera frame, OpenCV: x right, y down; the shift in pixels over fx and fy),
+    so rad for a small angle: translation and the camera's own rotation together, as a flow
+    chip measures it; cov_c_rad2 (2, 2): its covariance as the chip's fit claims it (white
+    residuals: see sensors.image_shift); texture_dn2: the image's squared gradient along its
+    weakest direction (DN^2 / px^2), low over bare fields and along rows; residual_dn: the
+    fit's residual SD (DN); R_bc (3, 3): the sensor's mounting, camera -> body; lever_arm_b_m
+    (3,): where it sits on the body (FRD, m); rotation_c (2, 3): the flow the fit reads per rad
+    of the camera's rotation about its x, y and z axes (at the image centre alone it would be
+    [[0, -1, 0], [1, 0, 0]]; off-centre pixels move more, and the texture weighs them: about
+    5 % more over 45 deg). The mounting is the installation's: the vehicle knows it."""
+
+    t_s: float
+    dt_s: float
+    flow_c_rad: np.ndarray
+    cov_c_rad2: np.ndarray
+    texture_dn2: float
+    residual_dn: float
+    R_bc: np.ndarray
+    lever_arm_b_m: np.ndarray
+    rotation_c: np.ndarray
+
+
+@dataclass(frozen=True, slots=True)
 class GnssFix:
     """GNSS receiver output, valid at t_s (the time of validity, before latency).
 

@@ -1,6 +1,6 @@
 """Sensor models: IMU, magnetometer, barometer, GNSS with denial, UWB, airspeed, the radar
-altimeter, the ideal state sensor, and cameras (camera/). Importing this package registers
-every sensor."""
+altimeter, the optical-flow sensor, the ideal state sensor, and cameras (camera/). Importing
+this package registers every sensor."""
 
 from testbench.sensors import (  # noqa: F401
     airspeed,
@@ -9,6 +9,7 @@ from testbench.sensors import (  # noqa: F401
     ideal_state,
     imu,
     magnetometer,
+    optical_flow,
     radar_altimeter,
     uwb,
 )
