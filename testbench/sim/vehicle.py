@@ -130,6 +130,9 @@ def build_vehicle(scn: Scenario, v: Vehicle, world: RunWorld, streams: RngStream
                                ctx=ctx_onboard, aircraft=dyn.aircraft_meta,
                                rng=streams.generator("vehicle", v.id, "navigation", "alignment"))
     by_name = {s.name: s.sensor for s in sensors}
+    check = getattr(navigator, "check_sensors", None)
+    if check is not None:  # the navigator's aiding may need sensors of a kind (bad input: exit 2)
+        check(by_name, f"{base}.navigation")
     onboard = {"reference_map": world.reference_map, "reference_elevation": world.reference_elevation, "same_raster": world.same_raster}
     aids = [
         registry.build(

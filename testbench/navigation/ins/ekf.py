@@ -62,9 +62,10 @@ def chi2_threshold(probability: float, dof: int) -> float:
 
 class ErrorStateEKF(Reacquisition):
     """Error-state EKF of one vehicle. Shapes: P (n, n), n = self.n: N_STATES (25) with
-    wind_states, else N_NO_WIND (23), plus 3 with the appearance states and 1 with the magnetic
-    heading bias; error vector layout in error_model (the appearance states, self.i_app, then
-    the magnetic bias, self.i_mag, come last).
+    wind_states, else N_NO_WIND (23), plus 3 with the appearance states, 1 with the magnetic
+    heading bias and 2 with the optical flow's slow error; error vector layout in error_model
+    (the appearance states, self.i_app, then the magnetic bias, self.i_mag, then the flow's
+    error, self.i_flow, come last).
 
     noise: IMU noise model; gate_probability: chi-square gate (e.g. 0.999; 1.0 disables);
     cov_interval_s: covariance propagation interval (0: every IMU sample);
@@ -97,6 +98,12 @@ class ErrorStateEKF(Reacquisition):
     Taken as white, each sample's 1 deg sigma averaged down to a fraction of a mrad over a
     minute, and the filter claimed a heading that the bias missed by several times that
     (paper_ismn_800m under a 300 nT anomaly: attitude NEES 3.9 per dof).
+    flow_bias_sigma_rps, flow_bias_tau_s: steady-state sigma (rad/s) and correlation time of
+    the optical flow's slowly varying error b_f, two Gauss-Markov states in the flow camera's x
+    and y (0 sigma: none; measurements.optical_flow reads h + b_f): a flow sensor's reading of
+    sub-pixel shifts errs by an amount that follows the ground it passes over and holds for
+    tens of seconds (0.1-0.2 m/s at 30 m, docs/measurements.md), which taken as white noise
+    the filter averages down.
     gyro_scale_sigma, scale_corr_angle_rad: the gyros' scale-factor and cross-axis error (1 sigma,
     rad per rad turned) is a constant error in each rate the IMU reads, which the error state
     does not carry: it enters P as attitude noise per angle turned, s^2 Theta |dtheta| per axis,
@@ -119,7 +126,8 @@ class ErrorStateEKF(Reacquisition):
                  scale_corr_angle_rad: float = 0.5 * math.pi, drag_scale_sigma: float = 0.0,
                  drag_scale_tau_s: float = math.inf, wind_states: bool = False, wind_rw_mps_sqrt_s: float = 0.0,
                  appearance_sigma_m: float | np.ndarray = 0.0, mag_bias_sigma_rad: float = 0.0,
-                 mag_bias_correlation_m: float = math.inf, vehicle_id: str | None = None):
+                 mag_bias_correlation_m: float = math.inf, flow_bias_sigma_rps: float = 0.0,
+                 flow_bias_tau_s: float = math.inf, vehicle_id: str | None = None):
         if bias_model not in ("random_walk", "gauss_markov"):
             raise ValueError(f"bias_model {bias_model!r}: expected 'random_walk' or 'gauss_markov'")
         self.noise = noise
@@ -134,7 +142,12 @@ class ErrorStateEKF(Reacquisition):
         self.mag_bias_correlation_m = float(mag_bias_correlation_m)
         self.i_mag: int | None = n_app if self._mag_var_rad2 > 0.0 else None
         """The magnetic heading bias's state (rad), or None without it."""
-        self.n = n_app + (1 if self.i_mag is not None else 0)
+        n_mag = n_app + (1 if self.i_mag is not None else 0)
+        self._flow_var = float(flow_bias_sigma_rps) ** 2
+        self.flow_bias_tau_s = float(flow_bias_tau_s)
+        self.i_flow: slice | None = slice(n_mag, n_mag + 2) if self._flow_var > 0.0 else None
+        """The optical flow's slowly varying error's two states (camera x, y, rad/s), or None."""
+        self.n = n_mag + (2 if self.i_flow is not None else 0)
         """Number of error states (the length of dx, the size of P)."""
         # Correlation times of the IMU bias ERRORS in F (inf: random walk) and of the nominal biases.
         gm = bias_model == "gauss_markov"
@@ -159,6 +172,8 @@ class ErrorStateEKF(Reacquisition):
             self._qc = np.concatenate([self._qc, q_app])
         if self.i_mag is not None:
             self._qc = np.concatenate([self._qc, [0.0]])  # driven by distance, in flush()
+        if self.i_flow is not None:
+            self._qc = np.concatenate([self._qc, [0.0, 0.0]])  # a Gauss-Markov step in flush()
         self.ins: StrapdownINS | None = None
         self.b_g = np.zeros(3)
         self.b_a = np.zeros(3)
@@ -168,6 +183,7 @@ class ErrorStateEKF(Reacquisition):
         self.b_app = np.zeros(3)
         self.b_mag_rad = 0.0
         self.drag_scale = 0.0
+        self.b_flow_rps = np.zeros(2)
         self.wind_ne_mps = np.zeros(2)
         self.P = np.zeros((self.n, self.n))
         self.omega_ib_b_rps = np.zeros(3)  # last bias-corrected gyro rate
@@ -189,6 +205,7 @@ class ErrorStateEKF(Reacquisition):
         self.b_app = np.zeros(3)
         self.b_mag_rad = 0.0
         self.drag_scale = 0.0
+        self.b_flow_rps = np.zeros(2)
         self.wind_ne_mps = np.zeros(2)
         self.P = np.array(P0, float)
         self._acc_T = 0.0
@@ -284,6 +301,10 @@ class ErrorStateEKF(Reacquisition):
             a = math.exp(-math.hypot(vn, ve) * T / self.mag_bias_correlation_m)
             self._gauss_markov_step(self.i_mag, a, self._mag_var_rad2)
             self.b_mag_rad *= a
+        if self.i_flow is not None and math.isfinite(self.flow_bias_tau_s):
+            a = math.exp(-T / self.flow_bias_tau_s)
+            self._gauss_markov_step(self.i_flow, a, self._flow_var * np.eye(2))
+            self.b_flow_rps = self.b_flow_rps * a
         self._acc_T = 0.0
         self._acc_fn = [0.0, 0.0, 0.0]
         self._acc_turn_rad = 0.0
@@ -368,6 +389,8 @@ class ErrorStateEKF(Reacquisition):
             self.b_app = self.b_app + dx[self.i_app]
         if self.i_mag is not None:
             self.b_mag_rad += float(dx[self.i_mag])
+        if self.i_flow is not None:
+            self.b_flow_rps = self.b_flow_rps + dx[self.i_flow]
 
     # ------------------------------------------------------------------ guard
     def _check(self, where: str) -> None:

@@ -244,3 +244,35 @@ def fix_heading(ekf, heading_rad: float, sigma_rad: float):
     H = np.zeros((1, ekf.n))
     H[0, IA] = heading_sensitivity(C)
     return y, H, np.array([[float(sigma_rad) ** 2]])
+
+
+def optical_flow(ekf, flow_rate_c_rps, R_bc, depth_m: float, cov_c_rps2, lever_arm_b_m=(0.0, 0.0, 0.0),
+                 depth_sigma_fraction: float = 0.0):
+    """Optical flow: the ground's translational flow rate at the image centre (2,) rad/s, in
+    the flow camera's frame (OpenCV: x right, y down; the camera's own rotation already taken
+    out), against h = -(v_c,x, v_c,y) / Z, v_c = R_cb (C^T v + omega x l) the camera's velocity
+    over the (static) ground in its frame, Z (depth_m) the distance to the ground along its
+    axis, R_bc (3, 3) camera -> body, l the lever arm (body FRD, m), omega the filter's
+    bias-corrected body rate.
+
+    With C_true = (I + [phi x]) C_nb and v_true = v + dv: C_true^T v_true = C^T v + C^T dv +
+    C^T [v x] phi, so with A = -(1/Z) S R_cb C^T (S: the camera's x and y rows): H_v = A,
+    H_phi = A [v x]. With the flow's slow-error states b_f (ekf.i_flow, rad/s) the model is
+    h + b_f, and H_bf = I. Noise: cov_c_rps2 (2, 2) plus the depth's relative
+    error, which scales the whole of h (rank one: depth_sigma_fraction^2 h h')."""
+    C = ekf.C_nb
+    v = np.array(ekf.ins.vel, float)
+    R_cb = np.asarray(R_bc, float).T
+    omega = np.asarray(ekf.omega_ib_b_rps, float)
+    v_c = R_cb @ (C.T @ v + np.cross(omega, np.asarray(lever_arm_b_m, float)))
+    h = -v_c[:2] / depth_m
+    y = np.asarray(flow_rate_c_rps, float) - h
+    A = -(R_cb[:2] @ C.T) / depth_m
+    H = np.zeros((2, ekf.n))
+    H[:, IV] = A
+    H[:, IA] = A @ skew(v)
+    if ekf.i_flow is not None:
+        y = y - ekf.b_flow_rps
+        H[:, ekf.i_flow] = np.eye(2)
+    R = np.asarray(cov_c_rps2, float) + depth_sigma_fraction**2 * np.outer(h, h)
+    return y, H, R

@@ -18,7 +18,9 @@ from testbench.core.messages import (
     ImuSample,
     MagSample,
     NavEstimate,
+    OpticalFlowSample,
     PositionFix,
+    RadarAltSample,
     TruthState,
 )
 from testbench.core.registry import register
@@ -30,6 +32,7 @@ from testbench.navigation.ins.air_aiding import AirRelativeAiding, wind_settings
 from testbench.navigation.ins.consistency import error_state
 from testbench.navigation.ins.ekf import ErrorStateEKF
 from testbench.navigation.ins.error_model import IA, IBA, IBB, IBG, IDS, IFX, IGN, IP, IV, IW
+from testbench.navigation.ins.flow_aiding import FlowVelocityAiding
 from testbench.navigation.ins.gnss_guard import GnssSpoofGuard
 from testbench.navigation.ins.imu_noise import (
     fit_to_flicker, imu_noise_from_datasheet, preset_datasheet, preset_names, preset_scale_error,
@@ -47,8 +50,8 @@ class InsEkfNavigator(Navigator):
     gyro and accelerometer biases, barometer bias, the GNSS receiver's and the position fixes'
     shared errors, the rotor-drag scale; with airspeed aiding 25, the horizontal wind as well:
     error_model), aided by barometer, magnetometer, GNSS (while it has a fix), absolute
-    position fixes (scene matching), rotor drag (multirotors) and airspeed with zero sideslip
-    (fixed wings). Params: settings.InsEkfParams."""
+    position fixes (scene matching), rotor drag (multirotors), airspeed with zero sideslip
+    (fixed wings) and optical flow with a rangefinder. Params: settings.InsEkfParams."""
 
     Params = InsEkfParams
 
@@ -101,6 +104,8 @@ class InsEkfNavigator(Navigator):
             appearance_sigma_m=params.fix_appearance_sigma_m,
             mag_bias_sigma_rad=0.0 if params.mag_bias is None else params.mag_bias.sigma_deg * DEG_TO_RAD,
             mag_bias_correlation_m=math.inf if params.mag_bias is None else params.mag_bias.correlation_m,
+            flow_bias_sigma_rps=0.0 if params.optical_flow is None else params.optical_flow.bias_sigma_rps,
+            flow_bias_tau_s=math.inf if params.optical_flow is None else params.optical_flow.bias_tau_s,
         )
         self._mag_model: OnboardMagneticModel | None = None
         self._airspeed: float | None = None
@@ -115,6 +120,8 @@ class InsEkfNavigator(Navigator):
         self.estimates_wind = self.ekf.wind_states
         self.air = AirRelativeAiding(params, aircraft, ctx.vehicle_id)
         """Rotor-drag and airspeed aiding (air_aiding.py)."""
+        self.flow = None if params.optical_flow is None else FlowVelocityAiding(params.optical_flow)
+        """Optical-flow aiding (flow_aiding.py); None: off."""
         # The last estimate() (None: the filter moved since). Aids, the controller and the
         # recorder all ask for it at a tick; in a ten-vehicle swarm building it each time was
         # a tenth of the run.
@@ -151,8 +158,8 @@ class InsEkfNavigator(Navigator):
         return dx
 
     def initial_covariance(self) -> np.ndarray:
-        """P0 (ekf.n, ekf.n) from Params.initial_sigma (GNSS and fix error states, the drag scale
-        and the magnetic bias: their steady state; the wind, with wind states: their aiding's
+        """P0 (ekf.n, ekf.n) from Params.initial_sigma (GNSS and fix error states, the drag scale,
+        the magnetic bias and the flow's slow error: their steady state; the wind, with wind states: their aiding's
         wind_sigma_mps)."""
         s = self.params.initial_sigma
         d = np.empty(self.ekf.n)
@@ -175,6 +182,8 @@ class InsEkfNavigator(Navigator):
             d[self.ekf.i_app] = self.params.fix_appearance_sigma_m
         if self.ekf.i_mag is not None:
             d[self.ekf.i_mag] = self.params.mag_bias.sigma_deg * DEG_TO_RAD
+        if self.ekf.i_flow is not None:
+            d[self.ekf.i_flow] = self.params.optical_flow.bias_sigma_rps
         return np.diag(d**2)
 
     def appearance_gain(self, quality: float) -> float:
@@ -188,10 +197,13 @@ class InsEkfNavigator(Navigator):
     def predict(self, imu: ImuSample) -> None:
         self._require_init()
         self._estimate = None
+        t_prev_s = self.ekf.t_s
         if self._gnss_guard is None:
             self.ekf.propagate(float(imu.t_s), imu.omega_ib_b_rps, imu.f_ib_b_mps2)
         else:  # the spoofing monitor's bookkeeping around the same propagation
             self._gnss_guard.propagate(self, imu)
+        if self.flow is not None:
+            self.flow.accumulate(self.ekf, t_prev_s)
         if self.air.drag_mu_per_s is not None:
             self.air.accumulate_drag(self.ekf, float(imu.t_s), imu.f_ib_b_mps2)
 
@@ -242,6 +254,12 @@ class InsEkfNavigator(Navigator):
             return self._correct_mag(measurement, t) if p.use_mag else None
         if isinstance(measurement, GnssFix):
             return self._correct_gnss(measurement, t) if p.use_gnss else None
+        if isinstance(measurement, OpticalFlowSample):
+            return self.flow.correct(self.ekf, measurement) if self.flow is not None else None
+        if isinstance(measurement, RadarAltSample):
+            if self.flow is not None:  # the rangefinder scales the flow; TAN takes ranges as an aid
+                self.flow.take_range(measurement)
+            return None
         if isinstance(measurement, AirspeedSample):
             # Kept for the estimate (controllers fly airspeed); fused only with airspeed aiding
             # (its wind states make it a constraint on the velocity over the ground).
@@ -288,6 +306,23 @@ class InsEkfNavigator(Navigator):
                 a.flags.writeable = False
         self._estimate = est
         return est
+
+    def check_sensors(self, sensors: dict, where: str) -> None:
+        """Raise InputError when an aiding the params turn on lacks its sensors on the vehicle
+        (sensors: name -> sensor; where: the navigator's scenario path)."""
+        if self.flow is None:
+            return
+        from testbench.sensors.optical_flow import OpticalFlowSensor
+        from testbench.sensors.radar_altimeter import RadarAltimeter
+
+        limit = math.radians(self.params.optical_flow.max_beam_half_angle_deg)
+        if not any(isinstance(x, OpticalFlowSensor) for x in sensors.values()):
+            raise InputError(f"{where}.params.optical_flow: the vehicle has no optical_flow sensor "
+                             f"(have: {', '.join(sensors) or 'none'})")
+        if not any(isinstance(x, RadarAltimeter) and x.beam_half_angle_rad <= limit + 1e-12 for x in sensors.values()):
+            raise InputError(f"{where}.params.optical_flow: the flow needs a downward rangefinder: a radar_altimeter "
+                             f"sensor with beam_half_angle_deg <= {self.params.optical_flow.max_beam_half_angle_deg:g} "
+                             "(a pencil beam along body z)")
 
     # ------------------------------------------------------------------ extras
     def covariance(self) -> np.ndarray:
@@ -344,7 +379,7 @@ class InsEkfNavigator(Navigator):
 
     # The navigator's state a rewind of the spoofing monitor restores (gnss_guard.py): the
     # filter and the bookkeeping of its aids.
-    ROLLBACK_ATTRS = ("ekf", "air", "_airspeed", "_last_gnss_t", "_last_fix_ok_t_s", "_last_gnss_ok_t_s",
+    ROLLBACK_ATTRS = ("ekf", "air", "flow", "_airspeed", "_last_gnss_t", "_last_fix_ok_t_s", "_last_gnss_ok_t_s",
                       "_last_baro_ok_t_s")
 
     def _correct_baro(self, baro: BaroSample, t: float) -> CorrectionInfo:

@@ -161,6 +161,52 @@ class AirspeedAiding(ParamsModel):
     """Below this (on the ground, in the take-off run) nothing is fused."""
 
 
+class OpticalFlowAiding(ParamsModel):
+    """Optical-flow velocity aiding (the flow fusion of PX4's EKF2, EKF2_OF_CTRL): a downward
+    flow sensor (sensor type optical_flow) measures how far the ground moved in its image over
+    an interval, its rotation and its translation over the distance to the ground together;
+    the filter takes the rotation out with its own bias-corrected gyros integrated over the
+    same interval, scales by the distance along the camera's axis from a downward pencil-beam
+    rangefinder (a radar_altimeter with beam_half_angle_deg at most max_beam_half_angle_deg,
+    its beam along body z; flat ground between the two footprints), and fuses the rest as the
+    camera's velocity over the ground (measurements.optical_flow). It measures the velocity
+    over the ground, where rotor drag and a pitot measure it through the air: in wind and
+    turbulence it is what keeps the velocity, and so the position, from drifting."""
+
+    sigma_scale: float = pydantic.Field(2.5, gt=0)
+    """The sensor's claimed covariance (its fit's, which takes the residuals as white) is
+    scaled by sigma_scale^2: the renderer's and the lens's blur correlate neighbouring pixels.
+    Calibrated on 64 x 64 px frames of the procedural farmland at 0.84 m/px (150 pairs:
+    NEES 13 for 2 dof, median 4.3)."""
+    sigma_floor_rad_s: float = pydantic.Field(0.002, ge=0)
+    """Added in quadrature per axis to the flow rate's sigma (rad/s): what the fit cannot
+    see, such as relief and the tilt's perspective, which make the flow differ over the image."""
+    rotation_sigma_fraction: float = pydantic.Field(0.03, ge=0)
+    """Share of the camera's own rotational flow (as the sensor reads it, and as the gyros
+    give it) left after it is taken out, per axis, 1 sigma: the sensor's first-order reading
+    of a rotating frame (1-3 % off over 45 deg, tests/sensors/camera/test_flow_sensor.py) and
+    the gyros' timing against the frames'."""
+    depth_sigma_fraction: float = pydantic.Field(0.02, ge=0)
+    """Relative error of the distance to the ground along the camera's axis: the
+    rangefinder's noise and the ground's slope between the two footprints."""
+    min_texture_dn2: float = pydantic.Field(0.05, ge=0)
+    """Samples whose image is textured less than this along its weakest direction (the
+    sensor's texture_dn2, DN^2/px^2) are not fused: bare fields and water."""
+    bias_sigma_rps: float = pydantic.Field(0.005, ge=0)
+    """1-sigma of the flow's slowly varying error (rad/s per camera axis), carried as two filter
+    states (ErrorStateEKF.i_flow; 0: none): the sensor's reading of sub-pixel shifts errs by
+    an amount that follows the ground under it (0.1-0.2 m/s at 30 m: 0.003-0.007 rad/s)."""
+    bias_tau_s: float = pydantic.Field(20.0, gt=0)
+    """Correlation time of that error (s): the time the vehicle takes over one field."""
+    max_range_age_s: float = pydantic.Field(0.25, gt=0)
+    """The latest range may be at most this old (s)."""
+    max_beam_half_angle_deg: float = pydantic.Field(3.0, ge=0, le=10)
+    """The widest rangefinder beam taken for the distance along the camera's axis (a wider
+    beam ranges the nearest ground in it, not the ground on its axis)."""
+    min_depth_m: float = pydantic.Field(1.0, gt=0)
+    """Below this distance to the ground (m: on the ground, landing) nothing is fused."""
+
+
 class MagBias(ParamsModel):
     """The magnetic heading's bias as a filter state (ErrorStateEKF.i_mag): the field the
     magnetometer senses differs from the onboard WMM by the crust's anomaly (world.
@@ -342,3 +388,6 @@ class InsEkfParams(ParamsModel):
     """True airspeed and zero-sideslip velocity aiding with wind states (fixed wings with an
     airspeed sensor; see AirspeedAiding); None: off (the airspeed is only passed on to the
     controller)."""
+    optical_flow: OpticalFlowAiding | None = None
+    """Optical-flow velocity over the ground from a downward flow sensor and a rangefinder
+    (see OpticalFlowAiding); None: off."""

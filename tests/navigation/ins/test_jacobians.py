@@ -146,6 +146,28 @@ def test_H_matches_finite_differences(name, model):
     np.testing.assert_allclose(H, H_num, rtol=1e-5, atol=3e-6 * scale, err_msg=name)
 
 
+def test_optical_flow_H_with_the_flow_error_states_matches_finite_differences():
+    noise = imu_noise_from_datasheet(0.15, 7.0, 0.02, 14.0)
+    ekf = ErrorStateEKF(noise, wind_states=True, flow_bias_sigma_rps=0.005, flow_bias_tau_s=20.0)
+    lat, lon, h, v, q = X_HAT
+    ekf.initialize(0.0, lat, lon, h, v, q, np.eye(ekf.n))
+    ekf.b_flow_rps = np.array([0.002, -0.001])
+    ekf.omega_ib_b_rps = (0.02, -0.03, 0.01)
+    # A flow camera pitched 80 deg down and yawed, 3 cm off the centre of gravity.
+    from testbench.core.camera_geometry import mount_rotation
+
+    R_bc = mount_rotation(2.0, -80.0, 15.0)
+
+    def model(e):
+        return meas.optical_flow(e, [0.3, -0.2], R_bc, 60.0, np.eye(2) * 1e-6, (0.03, 0.0, 0.01), 0.02)
+
+    H = model(ekf)[1]
+    steps = np.r_[STEPS, 1e-4, 1e-4]
+    H_num = _numeric_H(ekf, model, steps)
+    assert ekf.i_flow == slice(N_STATES, N_STATES + 2)
+    np.testing.assert_allclose(H, H_num, rtol=1e-5, atol=3e-6 * np.abs(H).max())
+
+
 @pytest.mark.parametrize("name", ["mag_vector", "mag_heading"])
 def test_mag_H_with_the_heading_bias_state_matches_finite_differences(name):
     """With the magnetic bias state (one more column, last) at a non-zero estimate."""
