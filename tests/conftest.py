@@ -1,5 +1,5 @@
-"""Shared fixtures: the repository root, the real-data folder (TESTBENCH_DATA) and a clean
-scenario-path helper."""
+"""Shared fixtures: the repository root, the real-data folder (TESTBENCH_DATA), a clean
+scenario-path helper and a quiet in-process `testbench run` of a shipped scenario."""
 
 from __future__ import annotations
 
@@ -10,6 +10,17 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 SCENARIOS = REPO / "scenarios"
+
+
+def run_scenario(name: str, out: Path, *sets: str) -> int:
+    """`testbench run scenarios/NAME.yaml --out OUT --no-report --quiet --set ...` in this
+    process; returns its exit status."""
+    from testbench.cli import main
+
+    args = ["run", str(SCENARIOS / f"{name}.yaml"), "--out", str(out), "--no-report", "--quiet"]
+    for s in sets:
+        args += ["--set", s]
+    return main(args)
 
 
 def data_dir() -> Path | None:

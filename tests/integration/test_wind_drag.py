@@ -11,17 +11,11 @@ from pathlib import Path
 import numpy as np
 import pyarrow.parquet as pq
 
-from testbench.cli import main
-
-REPO = Path(__file__).resolve().parents[2]
-SCENARIO = str(REPO / "scenarios" / "multirotor_wind_drag.yaml")
+from tests.conftest import run_scenario
 
 
 def _run(out: Path, *sets: str) -> int:
-    args = ["run", SCENARIO, "--out", str(out), "--no-report", "--quiet"]
-    for s in sets:
-        args += ["--set", s]
-    return main(args)
+    return run_scenario("multirotor_wind_drag", out, *sets)
 
 
 def test_drag_aided_ins_learns_a_steady_wind(tmp_path):

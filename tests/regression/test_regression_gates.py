@@ -43,6 +43,7 @@ GATED = {
     "fixedwing_racetrack": None,
     "multirotor_waypoints": None,
     "multirotor_wind_drag": None,
+    "multirotor_flow_wind": 120.0,
     "multirotor_urban_street": None,
     "ins_only_800m": 120.0,
     "paper_ismn_800m": 120.0,
