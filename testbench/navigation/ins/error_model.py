@@ -28,6 +28,9 @@ Error convention (truth = nominal (+) error):
   error b_app (origin NED m), which a fix of quality q shows as g(q) b_app (InsEkfParams.
   fix_appearance_sigma_m); Gauss-Markov like dfx. Not in N_STATES: a filter carries it only
   when asked, and its rows of F and Q are set by the filter.
+- dbm (1, optional, after dap: ErrorStateEKF.i_mag): error of the magnetic heading's bias
+  (rad); dbf (2, optional, last: ErrorStateEKF.i_flow): error of the optical flow's slowly
+  varying error (rad/s, the flow camera's x and y). Likewise carried only when asked.
 The nominal biases are subtracted from the raw IMU data: omega = omega_meas - b_g.
 
 Continuous error dynamics (phi-angle model, Titterton & Weston ch. 12 / Groves ch. 14, in

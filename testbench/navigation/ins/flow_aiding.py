@@ -101,7 +101,8 @@ class FlowVelocityAiding:
         rot_flow = np.asarray(m.rotation_c, float) @ (R_bc.T @ rot_b)
         flow_t = np.asarray(m.flow_c_rad, float) - rot_flow
         dt = float(m.dt_s)
+        rot_sigma = s.rotation_sigma_fraction * float(np.linalg.norm(rot_flow)) / dt
         cov = (np.asarray(m.cov_c_rad2, float) * (s.sigma_scale / dt) ** 2
-               + np.eye(2) * (s.sigma_floor_rad_s**2 + (s.rotation_sigma_fraction * float(np.linalg.norm(rot_flow)) / dt) ** 2))
+               + np.eye(2) * (s.sigma_floor_rad_s**2 + rot_sigma**2))
         y, H, R = meas.optical_flow(ekf, flow_t / dt, R_bc, depth_m, cov, m.lever_arm_b_m, s.depth_sigma_fraction)
         return ekf.update("optical_flow", t, y, H, R)

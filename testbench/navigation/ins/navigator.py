@@ -159,8 +159,8 @@ class InsEkfNavigator(Navigator):
 
     def initial_covariance(self) -> np.ndarray:
         """P0 (ekf.n, ekf.n) from Params.initial_sigma (GNSS and fix error states, the drag scale,
-        the magnetic bias and the flow's slow error: their steady state; the wind, with wind states: their aiding's
-        wind_sigma_mps)."""
+        the magnetic bias and the flow's slow error: their steady state; the wind, with wind
+        states: their aiding's wind_sigma_mps)."""
         s = self.params.initial_sigma
         d = np.empty(self.ekf.n)
         d[IP] = s.pos_m
