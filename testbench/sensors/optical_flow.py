@@ -15,8 +15,8 @@ texture_dn2, a wide covariance, or no sample.
 Before the fit each frame is smoothed by a Gaussian of blur_sigma_px (the lens's blur and the
 chip's pre-filter): a rendered frame of a 1 m map holds detail up to its pixels' own size
 (crop rows two pixels apart), which a real lens does not pass, and on which the fit's
-linearisation errs by a shift that depends on the sub-pixel phase (0.025-0.03 px at shifts of
-0.1-0.8 px, 64 px over 30 deg at 100 m; 0.005-0.01 px with 1 px of blur over 45 deg: 300
+linearisation errs by a shift that depends on the sub-pixel phase (0.012-0.033 px at shifts of
+0.1-0.8 px, 64 px over 30 deg at 100 m; 0.002-0.012 px with 1 px of blur over 45 deg: 100
 pairs of frames a shift, docs/measurements.md).
 
 Defaults: 64 x 64 px over 45 deg (1.3 m/px at 100 m above the ground, a little coarser than
