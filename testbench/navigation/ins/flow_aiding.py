@@ -64,12 +64,19 @@ class FlowVelocityAiding:
     def _rotation_b_rad(self, t0_s: float, t1_s: float) -> np.ndarray | None:
         """The body's rotation over (t0, t1] from the kept IMU samples (rad, body axes; the
         increments are small, so they add), or None where the history does not cover it."""
+        # Found newest first (an interval is the last few samples of two seconds of history),
+        # summed oldest first.
+        inside = []
+        for t, dt, da in reversed(self._dangles):
+            if t <= t0_s + 1e-9:
+                break
+            if t <= t1_s + 1e-9:
+                inside.append((dt, da))
         total = np.zeros(3)
         covered = 0.0
-        for t, dt, da in self._dangles:
-            if t0_s + 1e-9 < t <= t1_s + 1e-9:
-                total += da
-                covered += dt
+        for dt, da in reversed(inside):
+            total += da
+            covered += dt
         return total if abs(covered - (t1_s - t0_s)) <= 1e-6 else None
 
     def correct(self, ekf, m: OpticalFlowSample) -> CorrectionInfo | None:
