@@ -19,18 +19,18 @@ def _run(out: Path, *sets: str) -> int:
 
 
 def test_flow_holds_the_position_the_drag_alone_loses(tmp_path):
-    _run(tmp_path / "flow", "duration_s=200")
-    _run(tmp_path / "drag", "duration_s=200", "vehicles.quad0.navigation.params.optical_flow=null")
+    _run(tmp_path / "flow", "duration_s=150")
+    _run(tmp_path / "drag", "duration_s=150", "vehicles.quad0.navigation.params.optical_flow=null")
     flow = json.loads((tmp_path / "flow" / "metrics.json").read_text())["nav"]
     drag = json.loads((tmp_path / "drag" / "metrics.json").read_text())["nav"]
-    # 140 s without GNSS (seed 1; 2026-12-01): flow 15.0 m at most, drag 27.0 m (and 156 m at
+    # 90 s without GNSS (seed 1; 2026-12-01): flow 8.7 m at most, drag 25.6 m (and 156 m at
     # 300 s, where the flow stays under 24 m).
-    assert flow["denied"]["horizontal_error_m"]["max"] < 20.0
+    assert flow["denied"]["horizontal_error_m"]["max"] < 12.0
     assert drag["denied"]["horizontal_error_m"]["max"] > 1.5 * flow["denied"]["horizontal_error_m"]["max"]
     # The flow's slow error is a filter state, so the claims follow the errors.
     assert flow["nees"]["position"]["mean_per_dof"] < 2.5 and flow["nees"]["velocity"]["mean_per_dof"] < 2.5
     nis = flow["nis"]["optical_flow"]
-    assert nis["count"] > 0.95 * 200 * 20 * 0.99 and nis["accept_rate"] > 0.9
+    assert nis["count"] > 0.95 * 150 * 20 and nis["accept_rate"] > 0.9
     tel = pq.read_table(tmp_path / "flow" / "telemetry.parquet").to_pandas()
     assert "nav_vn_mps" in tel.columns
 
