@@ -23,10 +23,17 @@ Defaults: 64 x 64 px over 45 deg (1.3 m/px at 100 m above the ground, a little c
 the 1 m procedural maps), 20 Hz, looking straight down with the image top towards the nose;
 the camera's usual noise of 2 DN. A frame whose shift exceeds max_shift_px (the chip's
 largest flow rate) gives no sample.
+
+A frame that sees ground off the map (no-data, which the renderer draws black) gives no sample
+either, nor does the frame after it: the map's edge stays put in the image while the ground
+moves, and the fit reads a blend of the two (64 px over 45 deg at 50 m, 0.3 m north in 0.05 s:
++57 % with 11 % of the view off the map, -68 % with 36 %, each claimed to 3e-5 rad).
+A real camera has ground everywhere; a simulated one past its map has nothing honest to say.
 """
 
 from __future__ import annotations
 
+import logging
 from typing import Any
 
 import cv2
@@ -39,6 +46,8 @@ from testbench.core.registry import ParamsModel, register
 from testbench.sensors.base import CachedSensor, check_rate
 from testbench.sensors.camera.sensor import CameraParams, CameraSensor
 from testbench.sensors.image_shift import image_shift
+
+log = logging.getLogger(__name__)
 
 
 class OpticalFlowParams(ParamsModel):
@@ -66,7 +75,8 @@ class OpticalFlowParams(ParamsModel):
 @register("sensor", "optical_flow")
 class OpticalFlowSensor(CachedSensor):
     """Returns OpticalFlowSample from the second frame on, or None where the flow cannot be
-    measured (the first frame, no texture, a shift beyond max_shift_px)."""
+    measured (the first frame, no texture, a shift beyond max_shift_px, a frame or the one
+    before it looking off the map)."""
 
     Params = OpticalFlowParams
 
@@ -87,6 +97,7 @@ class OpticalFlowSensor(CachedSensor):
         self._px_to_rad = np.array([1.0 / cam.fx, 1.0 / cam.fy])
         self._rotation_fields_px = _rotation_fields_px(cam)
         self._prev: tuple[float, np.ndarray] | None = None  # (t_s, grey frame) of the last frame
+        self._warned_offmap = False
 
     @property
     def camera(self):
@@ -105,6 +116,13 @@ class OpticalFlowSensor(CachedSensor):
         image = None if frame is None else frame.image
         prev, self._prev = self._prev, None
         if image is None:
+            return None
+        if frame.offmap_fraction > 0.0:
+            if not self._warned_offmap:
+                log.warning("optical-flow sensor %s at t=%.1f s: %.1f %% of its view is off the map (no-data); no flow is "
+                            "measured while any of it is (fly over the map, or use a larger one)",
+                            self.name, truth.t_s, 100.0 * frame.offmap_fraction)
+                self._warned_offmap = True
             return None
         grey = cv2.cvtColor(np.ascontiguousarray(image), cv2.COLOR_RGB2GRAY).astype(np.float32)
         if self.params.blur_sigma_px > 0:

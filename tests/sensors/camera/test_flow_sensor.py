@@ -126,3 +126,20 @@ def test_a_rotation_moves_the_ground_as_the_sensor_says_it_reads_one(hfov_deg):
         np.testing.assert_allclose(m.flow_c_rad, centre, rtol=0.02)
     else:  # over 45 deg, 1 + tan(22.5 deg)^2 / 3 = 1.057 on average
         assert np.all(np.abs(m.flow_c_rad) > np.abs(centre) * 1.03)
+
+
+def test_a_view_off_the_map_gives_no_flow_until_two_frames_see_only_map(caplog):
+    # FlowWorld's map ends 256 m north; 50 m up the view spans +-20.7 m. At 240 m north 11 % of
+    # it is no-data, whose edge stays put while the ground moves: the fit read +57 % there.
+    s = _sensor()
+    world, rng = FlowWorld(), np.random.default_rng(0)
+    d = np.array([0.3, 0.1, 0.0])
+    pos = [np.array([n, 0.0, -50.0]) for n in (0.0, 240.0, 240.3, 0.0, 0.3, 0.6)]
+    pos[4], pos[5] = pos[3] + d, pos[3] + 2 * d
+    out = [s.measure(make_truth(1.0 + 0.05 * i, tuple(p)), world, rng) for i, p in enumerate(pos)]
+    # frame 1 looks off the map: no sample from it, nor from the pair it would start (frame 2);
+    # frame 3 starts a new pair (jumped back over the map: nothing to compare with), 4 and 5 measure.
+    assert [o is None for o in out] == [True, True, True, True, False, False]
+    assert "off the map" in caplog.text and caplog.text.count("off the map") == 1
+    d_c = s.mount.R_bc.T @ d  # level, heading north: body = NED
+    np.testing.assert_allclose(out[4].flow_c_rad, -d_c[:2] / 50.0, atol=2e-4)
