@@ -100,7 +100,11 @@ class OpticalFlowSample:
     (3,): where it sits on the body (FRD, m); rotation_c (2, 3): the flow the fit reads per rad
     of the camera's rotation about its x, y and z axes (at the image centre alone it would be
     [[0, -1, 0], [1, 0, 0]]; off-centre pixels move more, and the texture weighs them: about
-    5 % more over 45 deg). The mounting is the installation's: the vehicle knows it."""
+    5 % more over 45 deg); moments_c (2, 8) or None: what the fit reads (2,) of each of the
+    flow fields, in normalised coordinates (x, y), (x, 0), (y, 0), (x^2, 0), (x y, 0), (0, x),
+    (0, y), (0, x y), (0, y^2): a tilted camera's ground lies nearer on one side, so its
+    translation's flow is such a polynomial, and the texture weighs its parts (FLOW_MOMENT_FIELDS).
+    The mounting is the installation's: the vehicle knows it."""
 
     t_s: float
     dt_s: float
@@ -111,6 +115,12 @@ class OpticalFlowSample:
     R_bc: np.ndarray
     lever_arm_b_m: np.ndarray
     rotation_c: np.ndarray
+    moments_c: np.ndarray | None = None
+
+
+# The flow fields whose reading OpticalFlowSample.moments_c gives, in its column order: which
+# component of the flow (0: x, 1: y) and the monomial of the normalised image coordinates.
+FLOW_MOMENT_FIELDS = ((0, "x"), (0, "y"), (0, "xx"), (0, "xy"), (1, "x"), (1, "y"), (1, "xy"), (1, "yy"))
 
 
 @dataclass(frozen=True, slots=True)

@@ -41,7 +41,7 @@ import numpy as np
 import pydantic
 
 from testbench.core.interfaces import BuildContext
-from testbench.core.messages import OpticalFlowSample, TruthState
+from testbench.core.messages import FLOW_MOMENT_FIELDS, OpticalFlowSample, TruthState
 from testbench.core.registry import ParamsModel, register
 from testbench.sensors.base import CachedSensor, check_rate
 from testbench.sensors.camera.sensor import CameraParams, CameraSensor
@@ -95,7 +95,9 @@ class OpticalFlowSensor(CachedSensor):
             render_vehicles=False), ctx=ctx)
         cam = self._camera.camera
         self._px_to_rad = np.array([1.0 / cam.fx, 1.0 / cam.fy])
-        self._rotation_fields_px = _rotation_fields_px(cam)
+        # The fit reads each of these fields as it reads the ground's flow (image_shift): the
+        # camera's rotation about its three axes, then the monomial fields of moments_c.
+        self._fields_px = np.concatenate([_rotation_fields_px(cam), _moment_fields_px(cam)])
         self._prev: tuple[float, np.ndarray] | None = None  # (t_s, grey frame) of the last frame
         self._warned_offmap = False
 
@@ -130,7 +132,7 @@ class OpticalFlowSensor(CachedSensor):
         self._prev = (truth.t_s, grey)
         if prev is None:
             return None
-        shift = image_shift(prev[1], grey, fields=self._rotation_fields_px)
+        shift = image_shift(prev[1], grey, fields=self._fields_px)
         if shift is None or float(np.abs(shift.shift_px).max()) > self.params.max_shift_px:
             return None
         k = self._px_to_rad
@@ -140,8 +142,28 @@ class OpticalFlowSensor(CachedSensor):
             cov_c_rad2=shift.cov_px2 * np.outer(k, k), texture_dn2=shift.texture_dn2,
             residual_dn=shift.residual_dn, R_bc=np.asarray(mount.R_bc, float).copy(),
             lever_arm_b_m=np.asarray(mount.lever_arm_b_m, float).copy(),
-            rotation_c=(shift.field_response_px * k).T,
+            rotation_c=(shift.field_response_px[:3] * k).T,
+            moments_c=(shift.field_response_px[3:] * k).T,
         )
+
+
+def _normalised_grid(cam) -> tuple[np.ndarray, np.ndarray]:
+    """(h, w) normalised image coordinates x = (u - cx) / fx, y = (v - cy) / fy of every pixel."""
+    u, v = np.meshgrid(np.arange(cam.width_px, dtype=float), np.arange(cam.height_px, dtype=float))
+    return (u - cam.cx) / cam.fx, (v - cam.cy) / cam.fy
+
+
+def _moment_fields_px(cam) -> np.ndarray:
+    """(8, h, w, 2): the flow fields of core.messages.FLOW_MOMENT_FIELDS in pixels (a field of
+    one normalised unit along x is fx px along u). A camera tilted over flat ground sees its
+    translation's flow vary over the image as a quadratic in (x, y) (the ground nearer on one
+    side); the fit's reading of these fields lets the navigator predict what the fit reads of it."""
+    x, y = _normalised_grid(cam)
+    monomial = {"x": x, "y": y, "xx": x * x, "xy": x * y, "yy": y * y}
+    out = np.zeros((len(FLOW_MOMENT_FIELDS),) + x.shape + (2,))
+    for i, (axis, name) in enumerate(FLOW_MOMENT_FIELDS):
+        out[i, ..., axis] = (cam.fx, cam.fy)[axis] * monomial[name]
+    return out
 
 
 def _rotation_fields_px(cam) -> np.ndarray:
@@ -149,7 +171,6 @@ def _rotation_fields_px(cam) -> np.ndarray:
     about its x, y and z axes, pixel by pixel (the rotational part of the image Jacobian in
     normalised coordinates (x, y): x-axis (x y, 1 + y^2), y-axis (-(1 + x^2), -x y), z-axis
     (y, -x)), scaled by fx, fy."""
-    u, v = np.meshgrid(np.arange(cam.width_px, dtype=float), np.arange(cam.height_px, dtype=float))
-    x, y = (u - cam.cx) / cam.fx, (v - cam.cy) / cam.fy
+    x, y = _normalised_grid(cam)
     per_axis = [(x * y, 1.0 + y * y), (-(1.0 + x * x), -x * y), (y, -x)]
     return np.stack([np.stack([cam.fx * du, cam.fy * dv], axis=-1) for du, dv in per_axis])

@@ -93,14 +93,13 @@ class FlowVelocityAiding:
         # is the body's relative to the Earth (omega_ib - C^T omega_ie; 7e-5 rad/s).
         rot_b = rot_b - C.T @ geodesy.earth_rate_ned_rps(ekf.ins.lat_rad) * float(m.dt_s)
         R_bc = np.asarray(m.R_bc, float)
-        # The pencil beam ranges along body z: the height is its down part; the camera's
-        # depth at its centre is that height over its axis's down part (flat ground).
+        # The pencil beam ranges along body z: the height is its down part (flat ground;
+        # measurements.optical_flow scales the flow by it and by the camera's axis).
         height_m = self._range[1] * float(C[2, 2])
         axis_down = float((C @ R_bc[:, 2])[2])
         if axis_down < _MIN_AXIS_DOWN or height_m < s.min_depth_m:
             self.skipped += 1
             return None
-        depth_m = height_m / axis_down
         # The camera's rotation as the sensor's fit reads it (rotation_c: at the image centre
         # (-a_y, +a_x), over the whole frame a little more): taken out, the rest is the
         # translation's flow. What the first-order reading leaves is a share of it
@@ -111,5 +110,7 @@ class FlowVelocityAiding:
         rot_sigma = s.rotation_sigma_fraction * float(np.linalg.norm(rot_flow)) / dt
         cov = (np.asarray(m.cov_c_rad2, float) * (s.sigma_scale / dt) ** 2
                + np.eye(2) * (s.sigma_floor_rad_s**2 + rot_sigma**2))
-        y, H, R = meas.optical_flow(ekf, flow_t / dt, R_bc, depth_m, cov, m.lever_arm_b_m, s.depth_sigma_fraction)
+        moments = getattr(m, "moments_c", None) if s.perspective else None
+        y, H, R = meas.optical_flow(ekf, flow_t / dt, R_bc, self._range[1], cov, m.lever_arm_b_m,
+                                    s.depth_sigma_fraction, moments)
         return ekf.update("optical_flow", t, y, H, R)

@@ -246,33 +246,72 @@ def fix_heading(ekf, heading_rad: float, sigma_rad: float):
     return y, H, np.array([[float(sigma_rad) ** 2]])
 
 
-def optical_flow(ekf, flow_rate_c_rps, R_bc, depth_m: float, cov_c_rps2, lever_arm_b_m=(0.0, 0.0, 0.0),
-                 depth_sigma_fraction: float = 0.0):
-    """Optical flow: the ground's translational flow rate at the image centre (2,) rad/s, in
-    the flow camera's frame (OpenCV: x right, y down; the camera's own rotation already taken
-    out), against h = -(v_c,x, v_c,y) / Z, v_c = R_cb (C^T v + omega x l) the camera's velocity
-    over the (static) ground in its frame, Z (depth_m) the distance to the ground along its
-    axis, R_bc (3, 3) camera -> body, l the lever arm (body FRD, m), omega the filter's
+def optical_flow(ekf, flow_rate_c_rps, R_bc, range_m: float, cov_c_rps2, lever_arm_b_m=(0.0, 0.0, 0.0),
+                 depth_sigma_fraction: float = 0.0, moments_c=None):
+    """Optical flow: the ground's translational flow rate as the sensor's fit reads it (2,)
+    rad/s, in the flow camera's frame (OpenCV: x right, y down; the camera's own rotation
+    already taken out), over flat ground whose distance a pencil beam along body z ranges
+    (range_m, m). R_bc (3, 3) camera -> body, l the lever arm (body FRD, m), omega the filter's
     bias-corrected body rate.
 
-    With C_true = (I + [phi x]) C_nb and v_true = v + dv: C_true^T v_true = C^T v + C^T dv +
-    C^T [v x] phi, so with A = -(1/Z) S R_cb C^T (S: the camera's x and y rows): H_v = A,
-    H_phi = A [v x]. With the flow's slow-error states b_f (ekf.i_flow, rad/s) the model is
-    h + b_f, and H_bf = I. Noise: cov_c_rps2 (2, 2) plus the depth's relative
-    error, which scales the whole of h (rank one: depth_sigma_fraction^2 h h')."""
+    The camera moves at t = R_cb (C^T v + omega x l) over the ground (camera frame); the ground
+    plane's unit normal (down) there is n = R_cb C^T e_d, and its distance along it D = range
+    (C e_z . e_d). A ground point at normalised (x, y) lies at depth Z = D / (n . (x, y, 1)) and
+    moves in the image by ((-t_x + x t_z), (-t_y + y t_z)) / Z, a quadratic in (x, y). The fit
+    reads a weighted mean of that field: at the image centre -(t_x, t_y) n_z / D, plus what
+    moments_c ((2, 8), OpticalFlowSample) says it reads of the field's x, y, x^2, x y, y^2
+    parts. Without moments_c the model is the centre's flow alone, -(t_x, t_y) / Z_centre (as
+    PX4's EKF2 fuses a flow chip's output); with it, a 20 deg tilt's 2-4 % reading error
+    (texture-dependent) is predicted rather than left as noise. Both are bilinear in (t, n):
+    h = (t' B_k n) / D for k = x, y.
+
+    H (C_true = (I + [phi x]) C_nb, v_true = v + dv, the range held as measured): d t / d v =
+    R_cb C^T, d t / d phi = R_cb C^T [v x], d n / d phi = R_cb C^T [e_d x], d D / d phi = range
+    (b x e_d)' with b = C e_z. With the flow's slow-error states b_f (ekf.i_flow, rad/s) the
+    model is h + b_f, and H_bf = I. Noise: cov_c_rps2 (2, 2) plus the depth's relative error,
+    which scales the whole of h (rank one: depth_sigma_fraction^2 h h')."""
     C = ekf.C_nb
     v = np.array(ekf.ins.vel, float)
     R_cb = np.asarray(R_bc, float).T
     omega = np.asarray(ekf.omega_ib_b_rps, float)
-    v_c = R_cb @ (C.T @ v + np.cross(omega, np.asarray(lever_arm_b_m, float)))
-    h = -v_c[:2] / depth_m
+    RcCt = R_cb @ C.T
+    t = R_cb @ (C.T @ v + np.cross(omega, np.asarray(lever_arm_b_m, float)))
+    n = RcCt[:, 2]  # R_cb C^T e_d
+    b_down = float(C[2, 2])
+    D = float(range_m) * b_down
+    B = flow_bilinear(moments_c)
+    dF_dt = B @ n  # (2, 3)
+    F = dF_dt @ t
+    h = F / D
     y = np.asarray(flow_rate_c_rps, float) - h
-    A = -(R_cb[:2] @ C.T) / depth_m
+    dF_dn = np.einsum("kij,i->kj", B, t)  # (2, 3)
     H = np.zeros((2, ekf.n))
-    H[:, IV] = A
-    H[:, IA] = A @ skew(v)
+    H[:, IV] = dF_dt @ RcCt / D
+    b_x_ed = np.array([C[1, 2], -C[0, 2], 0.0])  # (C e_z) x e_d
+    H[:, IA] = ((dF_dt @ RcCt @ skew(v) + dF_dn @ RcCt @ skew(np.array([0.0, 0.0, 1.0]))) / D
+                - np.outer(F, range_m * b_x_ed) / D**2)
     if ekf.i_flow is not None:
         y = y - ekf.b_flow_rps
         H[:, ekf.i_flow] = np.eye(2)
     R = np.asarray(cov_c_rps2, float) + depth_sigma_fraction**2 * np.outer(h, h)
     return y, H, R
+
+
+# c_j = t' Q_j n: the coefficient of the j-th field of FLOW_MOMENT_FIELDS in the flow of a
+# camera translating at t over ground of normal n (times D): x-flow's x, y, x^2, x y parts,
+# then y-flow's x, y, x y, y^2 (see optical_flow).
+_FLOW_Q = np.zeros((8, 3, 3))
+for _j, _entries in enumerate((((0, 0, -1.0), (2, 2, 1.0)), ((0, 1, -1.0),), ((2, 0, 1.0),), ((2, 1, 1.0),),
+                               ((1, 0, -1.0),), ((1, 1, -1.0), (2, 2, 1.0)), ((2, 0, 1.0),), ((2, 1, 1.0),))):
+    for _i, _l, _q in _entries:
+        _FLOW_Q[_j, _i, _l] = _q
+_FLOW_CENTRE = np.zeros((2, 3, 3))
+_FLOW_CENTRE[0, 0, 2] = _FLOW_CENTRE[1, 1, 2] = -1.0  # -(t_x, t_y) n_z
+
+
+def flow_bilinear(moments_c) -> np.ndarray:
+    """B (2, 3, 3): the fit's reading of a translation's flow over flat ground, h_k D = t' B_k n
+    (optical_flow); the image centre's flow alone without moments_c."""
+    if moments_c is None:
+        return _FLOW_CENTRE
+    return _FLOW_CENTRE + np.einsum("kj,jil->kil", np.asarray(moments_c, float), _FLOW_Q)

@@ -146,7 +146,8 @@ def test_H_matches_finite_differences(name, model):
     np.testing.assert_allclose(H, H_num, rtol=1e-5, atol=3e-6 * scale, err_msg=name)
 
 
-def test_optical_flow_H_with_the_flow_error_states_matches_finite_differences():
+@pytest.mark.parametrize("moments", [False, True], ids=["centre", "moments"])
+def test_optical_flow_H_with_the_flow_error_states_matches_finite_differences(moments):
     noise = imu_noise_from_datasheet(0.15, 7.0, 0.02, 14.0)
     ekf = ErrorStateEKF(noise, wind_states=True, flow_bias_sigma_rps=0.005, flow_bias_tau_s=20.0)
     lat, lon, h, v, q = X_HAT
@@ -158,8 +159,12 @@ def test_optical_flow_H_with_the_flow_error_states_matches_finite_differences():
 
     R_bc = mount_rotation(2.0, -80.0, 15.0)
 
+    # The fit's reading of the quadratic flow fields (a textured frame's: weights off centre).
+    moments_c = (np.random.default_rng(4).normal(0.0, 0.05, (2, 8)) + [[0.1, 0, 0.06, 0, 0, 0, 0, 0],
+                                                                    [0, 0, 0, 0, 0, 0.1, 0, 0.06]]) if moments else None
+
     def model(e):
-        return meas.optical_flow(e, [0.3, -0.2], R_bc, 60.0, np.eye(2) * 1e-6, (0.03, 0.0, 0.01), 0.02)
+        return meas.optical_flow(e, [0.3, -0.2], R_bc, 60.0, np.eye(2) * 1e-6, (0.03, 0.0, 0.01), 0.02, moments_c)
 
     H = model(ekf)[1]
     steps = np.r_[STEPS, 1e-4, 1e-4]

@@ -143,3 +143,33 @@ def test_a_view_off_the_map_gives_no_flow_until_two_frames_see_only_map(caplog):
     assert "off the map" in caplog.text and caplog.text.count("off the map") == 1
     d_c = s.mount.R_bc.T @ d  # level, heading north: body = NED
     np.testing.assert_allclose(out[4].flow_c_rad, -d_c[:2] / 50.0, atol=2e-4)
+
+
+def test_a_tilted_cameras_reading_is_the_one_its_moments_predict():
+    # 20 deg of pitch, 50 m up: the ground is nearer on one side of the image, where it moves
+    # faster, and the texture weighs the sides unevenly. The fit's reading of the quadratic
+    # fields (moments_c) predicts what it reads of the translation; the centre's flow alone,
+    # -(t_x, t_y) n_z / D, does not.
+    from testbench.navigation.ins.measurements import flow_bilinear
+
+    world, rng = FlowWorld(), np.random.default_rng(0)
+    rpy = (0.0, np.radians(-20.0), 0.0)
+    R_nc = euler_to_dcm(np.array(rpy)) @ _sensor().mount.R_bc
+    n_c = R_nc.T @ [0.0, 0.0, 1.0]
+    centre_err, moments_err = [], []
+    for _ in range(16):
+        s = _sensor()
+        n0, e0 = rng.uniform(-150, 150, 2)
+        course = rng.uniform(0, 2 * np.pi)
+        d = 0.3 * np.array([np.cos(course), np.sin(course), 0.0])
+        s.measure(make_truth(1.0, (n0, e0, -50.0), rpy_rad=rpy), world, rng)
+        m = s.measure(make_truth(1.05, (n0 + d[0], e0 + d[1], -50.0), rpy_rad=rpy), world, rng)
+        assert m.moments_c.shape == (2, 8)
+        t_c = R_nc.T @ d
+        centre = flow_bilinear(None) @ n_c @ t_c / 50.0
+        predicted = flow_bilinear(m.moments_c) @ n_c @ t_c / 50.0
+        centre_err.append(np.linalg.norm(m.flow_c_rad - centre) / np.linalg.norm(centre))
+        moments_err.append(np.linalg.norm(m.flow_c_rad - predicted) / np.linalg.norm(centre))
+    assert np.median(moments_err) < 0.015
+    assert np.median(moments_err) < 0.7 * np.median(centre_err)
+    assert np.max(moments_err) < 0.7 * np.max(centre_err)
