@@ -98,12 +98,14 @@ class ErrorStateEKF(Reacquisition):
     Taken as white, each sample's 1 deg sigma averaged down to a fraction of a mrad over a
     minute, and the filter claimed a heading that the bias missed by several times that
     (paper_ismn_800m under a 300 nT anomaly: attitude NEES 3.9 per dof).
-    flow_bias_sigma_rps, flow_bias_tau_s: steady-state sigma (rad/s) and correlation time of
-    the optical flow's slowly varying error b_f, two Gauss-Markov states in the flow camera's x
-    and y (0 sigma: none; measurements.optical_flow reads h + b_f): a flow sensor's reading of
-    sub-pixel shifts errs by an amount that follows the ground it passes over and holds for
-    tens of seconds (0.1-0.2 m/s at 30 m, docs/measurements.md), which taken as white noise
-    the filter averages down.
+    flow_bias_sigma_rps, flow_bias_tau_s, flow_bias_correlation_rad: steady-state sigma (rad/s)
+    of the optical flow's slowly varying error b_f, two Gauss-Markov states in the flow camera's
+    x and y (0 sigma: none; measurements.optical_flow reads h + b_f), and how it decorrelates:
+    over time (tau) and over the ground the view passes, exp(-T / tau - |flow| T / correlation),
+    |flow| the translation's flow rate the last sample showed (flow_view_rate_rps, rad/s, set by
+    the flow aiding): a flow sensor's reading of sub-pixel shifts errs by an amount that follows
+    the ground in its view, the same while the view holds the same ground (consecutive frames
+    share 99 % of it at 5 m/s), which taken as white noise the filter averages down.
     gyro_scale_sigma, scale_corr_angle_rad: the gyros' scale-factor and cross-axis error (1 sigma,
     rad per rad turned) is a constant error in each rate the IMU reads, which the error state
     does not carry: it enters P as attitude noise per angle turned, s^2 Theta |dtheta| per axis,
@@ -127,7 +129,8 @@ class ErrorStateEKF(Reacquisition):
                  drag_scale_tau_s: float = math.inf, wind_states: bool = False, wind_rw_mps_sqrt_s: float = 0.0,
                  appearance_sigma_m: float | np.ndarray = 0.0, mag_bias_sigma_rad: float = 0.0,
                  mag_bias_correlation_m: float = math.inf, flow_bias_sigma_rps: float = 0.0,
-                 flow_bias_tau_s: float = math.inf, vehicle_id: str | None = None):
+                 flow_bias_tau_s: float = math.inf, flow_bias_correlation_rad: float = math.inf,
+                 vehicle_id: str | None = None):
         if bias_model not in ("random_walk", "gauss_markov"):
             raise ValueError(f"bias_model {bias_model!r}: expected 'random_walk' or 'gauss_markov'")
         self.noise = noise
@@ -145,6 +148,7 @@ class ErrorStateEKF(Reacquisition):
         n_mag = n_app + (1 if self.i_mag is not None else 0)
         self._flow_var = float(flow_bias_sigma_rps) ** 2
         self.flow_bias_tau_s = float(flow_bias_tau_s)
+        self.flow_bias_correlation_rad = float(flow_bias_correlation_rad)
         self.i_flow: slice | None = slice(n_mag, n_mag + 2) if self._flow_var > 0.0 else None
         """The optical flow's slowly varying error's two states (camera x, y, rad/s), or None."""
         self.n = n_mag + (2 if self.i_flow is not None else 0)
@@ -184,6 +188,7 @@ class ErrorStateEKF(Reacquisition):
         self.b_mag_rad = 0.0
         self.drag_scale = 0.0
         self.b_flow_rps = np.zeros(2)
+        self.flow_view_rate_rps = 0.0  # |translational flow| of the last flow sample (rad/s)
         self.wind_ne_mps = np.zeros(2)
         self.P = np.zeros((self.n, self.n))
         self.omega_ib_b_rps = np.zeros(3)  # last bias-corrected gyro rate
@@ -301,10 +306,13 @@ class ErrorStateEKF(Reacquisition):
             a = math.exp(-math.hypot(vn, ve) * T / self.mag_bias_correlation_m)
             self._gauss_markov_step(self.i_mag, a, self._mag_var_rad2)
             self.b_mag_rad *= a
-        if self.i_flow is not None and math.isfinite(self.flow_bias_tau_s):
-            a = math.exp(-T / self.flow_bias_tau_s)
-            self._gauss_markov_step(self.i_flow, a, self._flow_var * np.eye(2))
-            self.b_flow_rps = self.b_flow_rps * a
+        if self.i_flow is not None:
+            # The flow's error decorrelates with time and with the ground its view passes.
+            k = T / self.flow_bias_tau_s + self.flow_view_rate_rps * T / self.flow_bias_correlation_rad
+            if k > 0.0:
+                a = math.exp(-k)
+                self._gauss_markov_step(self.i_flow, a, self._flow_var * np.eye(2))
+                self.b_flow_rps = self.b_flow_rps * a
         self._acc_T = 0.0
         self._acc_fn = [0.0, 0.0, 0.0]
         self._acc_turn_rad = 0.0

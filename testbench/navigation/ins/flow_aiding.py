@@ -110,6 +110,8 @@ class FlowVelocityAiding:
         rot_sigma = s.rotation_sigma_fraction * float(np.linalg.norm(rot_flow)) / dt
         cov = (np.asarray(m.cov_c_rad2, float) * (s.sigma_scale / dt) ** 2
                + np.eye(2) * (s.sigma_floor_rad_s**2 + rot_sigma**2))
+        # How fast the view passes over the ground: the flow's slow error decorrelates with it.
+        ekf.flow_view_rate_rps = float(np.hypot(flow_t[0], flow_t[1])) / dt
         moments = getattr(m, "moments_c", None) if s.perspective else None
         y, H, R = meas.optical_flow(ekf, flow_t / dt, R_bc, self._range[1], cov, m.lever_arm_b_m,
                                     s.depth_sigma_fraction, moments)

@@ -106,6 +106,8 @@ class InsEkfNavigator(Navigator):
             mag_bias_correlation_m=math.inf if params.mag_bias is None else params.mag_bias.correlation_m,
             flow_bias_sigma_rps=0.0 if params.optical_flow is None else params.optical_flow.bias_sigma_rps,
             flow_bias_tau_s=math.inf if params.optical_flow is None else params.optical_flow.bias_tau_s,
+            flow_bias_correlation_rad=(math.inf if params.optical_flow is None
+                                       else params.optical_flow.bias_correlation_rad),
         )
         self._mag_model: OnboardMagneticModel | None = None
         self._airspeed: float | None = None

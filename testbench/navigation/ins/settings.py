@@ -201,12 +201,18 @@ class OpticalFlowAiding(ParamsModel):
     min_texture_dn2: float = pydantic.Field(0.05, ge=0)
     """Samples whose image is textured less than this along its weakest direction (the
     sensor's texture_dn2, DN^2/px^2) are not fused: bare fields and water."""
-    bias_sigma_rps: float = pydantic.Field(0.005, ge=0)
+    bias_sigma_rps: float = pydantic.Field(0.003, ge=0)
     """1-sigma of the flow's slowly varying error (rad/s per camera axis), carried as two filter
     states (ErrorStateEKF.i_flow; 0: none): the sensor's reading of sub-pixel shifts errs by
-    an amount that follows the ground under it (0.1-0.2 m/s at 30 m: 0.003-0.007 rad/s)."""
-    bias_tau_s: float = pydantic.Field(20.0, gt=0)
-    """Correlation time of that error (s): the time the vehicle takes over one field."""
+    an amount that follows the ground in its view, 1.5-2.5 % of the flow from frame to frame
+    over the Kampala orthophoto and the farmland (0.003 rad/s at 5 m/s 30 m up)."""
+    bias_correlation_rad: float = pydantic.Field(0.8, gt=0)
+    """How far the ground moves through the view (rad of image angle, the translation's flow
+    integrated) before that error decorrelates: about the view's width (0.79 rad over 45 deg),
+    when the view holds other ground. 4.8 s at 5 m/s 30 m up, 13 s at 6 m/s 100 m up."""
+    bias_tau_s: float = pydantic.Field(60.0, gt=0)
+    """Its correlation time besides (s): hovering over the same ground, the light and the
+    attitude still change what the fit reads."""
     max_range_age_s: float = pydantic.Field(0.25, gt=0)
     """The latest range may be at most this old (s)."""
     max_beam_half_angle_deg: float = pydantic.Field(3.0, ge=0, le=10)

@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from testbench.core.camera_geometry import mount_rotation
 from testbench.core.messages import OpticalFlowSample, RadarAltSample
@@ -81,3 +82,30 @@ def test_samples_it_cannot_fuse_are_counted_not_fused():
     assert flow.correct(ekf, weak) is None  # no texture
     assert flow.skipped == 4
     assert flow.correct(ekf, _sample(0.3, 0.05, [0.0, 0.0])) is not None
+
+
+def test_the_flows_slow_error_decorrelates_with_the_ground_its_view_passes():
+    def decay(view_rate_rps):
+        ekf = ErrorStateEKF(imu_noise_from_datasheet(0.15, 7.0, 0.02, 14.0), flow_bias_sigma_rps=0.003,
+                            flow_bias_tau_s=60.0, flow_bias_correlation_rad=0.8)
+        ekf.initialize(0.0, math.radians(47.0), math.radians(-99.0), 530.0, np.zeros(3),
+                       euler_to_quat(np.zeros(3)), np.eye(ekf.n) * 1e-4)
+        ekf.b_flow_rps = np.array([0.002, -0.001])
+        ekf.flow_view_rate_rps = view_rate_rps
+        _fly(ekf, FlowVelocityAiding(OpticalFlowAiding()), np.zeros(3), 2.0)
+        return ekf.b_flow_rps[0] / 0.002
+
+    # Hovering over the same ground it holds (time alone, 60 s); at 0.2 rad/s of flow (5 m/s
+    # 25 m up) the view passes 0.4 rad of ground in 2 s, half its correlation.
+    # (to the covariance interval: the last few ms of the 2 s wait for the next step)
+    assert decay(0.0) == pytest.approx(math.exp(-2.0 / 60.0), rel=2e-3)
+    # the rates of decay: 1 / 60 s against 1 / 60 + 0.2 / 0.8 per second
+    assert math.log(decay(0.2)) / math.log(decay(0.0)) == pytest.approx(16.0, rel=1e-9)
+
+
+def test_the_fusion_tells_the_filter_how_fast_its_view_passes_the_ground():
+    ekf, flow = _filter(vel_ned_mps=(2.0, 0.0, 0.0))
+    _fly(ekf, flow, np.zeros(3), 0.5)
+    flow.take_range(RadarAltSample(0.5, 40.0, 0.0))
+    flow.correct(ekf, _sample(0.5, 0.05, [0.0, 2.0 / 40.0 * 0.05]))
+    assert ekf.flow_view_rate_rps == pytest.approx(2.0 / 40.0)
