@@ -147,11 +147,14 @@ class World(pydantic.BaseModel):
     terrain (elevation), the terrain model vehicles carry (reference_elevation, default the terrain; its error
     reference_elevation_error: DemError, None: none), obstacles (boxes: ObstacleBox), the air mass (wind; None: calm
     air), the crust's magnetic anomaly (None: the magnetometers sense the WMM the vehicles carry, exactly). Maps are
-    GeoTIFF paths (with ${VAR} expansion) or `procedural:` specs; None means no imagery / flat ground."""
+    GeoTIFF paths (with ${VAR} expansion) or `procedural:` specs; None means no imagery / flat ground.
+    imagery_credit: the imagery's attribution, printed in the run's report, which shows the imagery (a CC BY
+    licence asks for it wherever the data is shown)."""
 
     model_config = _CFG
     origin: Origin
     imagery: str | None = None
+    imagery_credit: str | None = None
     reference_map: str | None = None
     elevation: str | None = None
     reference_elevation: str | None = None

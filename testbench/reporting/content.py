@@ -73,6 +73,9 @@ def _config_table(record: RunRecord) -> Table:
     for vid, windows in (info.get("gnss_spoofed_windows") or {}).items():
         if windows:  # listed only where a spoofer acts
             rows.append([f"GNSS spoofed {vid}", ", ".join(f"{a:g}–{b:g} s" for a, b in windows)])
+    credit = (info.get("world") or {}).get("imagery_credit")
+    if credit:
+        rows.append(["imagery credit", str(credit)])
     wind = (info.get("world") or {}).get("wind")
     if isinstance(wind, dict):
         turb = wind.get("turbulence")

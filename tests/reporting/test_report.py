@@ -57,7 +57,7 @@ def test_sections_without_data_are_omitted(tmp_path):
     assert "no map preview" in html
 
 
-def test_configuration_names_the_wind_the_magnetic_anomaly_and_the_obstacles(tmp_path):
+def test_configuration_names_the_wind_the_magnetic_anomaly_the_obstacles_and_the_imagery_credit(tmp_path):
     """What the world adds to the truth (run.json's world) is in the configuration table."""
     d = make_synthetic_run(tmp_path, np.random.default_rng(1), n_vehicles=1, duration_s=10.0, rate_hz=5.0,
                            with_events=False, with_images=False)
@@ -65,7 +65,8 @@ def test_configuration_names_the_wind_the_magnetic_anomaly_and_the_obstacles(tmp
     info["world"] = {"wind": {"speed_mps": 8.0, "from_deg": 300.0, "turbulence": None},
                      "magnetic_anomaly": {"rms_nT": 300.0, "source_depth_m": 2000.0, "seed": None, "waves": 256},
                      "obstacles": [{"name": "hall", "min_ned_m": [10.0, -5.0, -40.0], "max_ned_m": [20.0, 5.0, 0.0]},
-                                   {"name": None, "min_ned_m": [0.0, 0.0, -5.0], "max_ned_m": [1.0, 1.0, 0.0]}]}
+                                   {"name": None, "min_ned_m": [0.0, 0.0, -5.0], "max_ned_m": [1.0, 1.0, 0.0]}],
+                     "imagery_credit": "Orthophoto: OpenAerialMap contributors, CC BY 4.0"}
     (d / "run.json").write_text(json.dumps(info))
     html = unescape(write_html_report(d).read_text())
     row = re.search(r"<tr><td>magnetic anomaly</td>.*?</tr>", html).group(0)
@@ -74,6 +75,8 @@ def test_configuration_names_the_wind_the_magnetic_anomaly_and_the_obstacles(tmp
     hall = re.search(r"<tr><td>obstacle hall</td>.*?</tr>", html).group(0)
     assert "north 10–20 m, east -5–5 m, 0–40 m above the origin" in hall
     assert re.search(r"<tr><td>obstacle 2</td>", html)
+    # the imagery's attribution, which its licence asks for where the report shows it
+    assert "OpenAerialMap contributors, CC BY 4.0" in re.search(r"<tr><td>imagery credit</td>.*?</tr>", html).group(0)
 
 
 def test_the_same_raster_warning_only_where_scenes_were_matched(tmp_path):
