@@ -23,10 +23,11 @@ def test_flow_holds_the_position_the_drag_alone_loses(tmp_path):
     _run(tmp_path / "drag", "duration_s=150", "vehicles.quad0.navigation.params.optical_flow=null")
     flow = json.loads((tmp_path / "flow" / "metrics.json").read_text())["nav"]
     drag = json.loads((tmp_path / "drag" / "metrics.json").read_text())["nav"]
-    # 90 s without GNSS (seed 1; 2026-12-01): flow 8.7 m at most, drag 25.6 m (and 156 m at
-    # 300 s, where the flow stays under 24 m).
-    assert flow["denied"]["horizontal_error_m"]["max"] < 12.0
-    assert drag["denied"]["horizontal_error_m"]["max"] > 1.5 * flow["denied"]["horizontal_error_m"]["max"]
+    # 90 s without GNSS (seed 1; 2026-12-01, with the tilted ground's reading and the flow's
+    # error decorrelating over the ground its view passes): flow 4.7 m at most, drag 25.6 m (and
+    # 156 m at 300 s, where the flow stays under 7.3 m).
+    assert flow["denied"]["horizontal_error_m"]["max"] < 7.0
+    assert drag["denied"]["horizontal_error_m"]["max"] > 3.0 * flow["denied"]["horizontal_error_m"]["max"]
     # The flow's slow error is a filter state, so the claims follow the errors.
     assert flow["nees"]["position"]["mean_per_dof"] < 2.5 and flow["nees"]["velocity"]["mean_per_dof"] < 2.5
     nis = flow["nis"]["optical_flow"]

@@ -44,6 +44,7 @@ GATED = {
     "multirotor_waypoints": None,
     "multirotor_wind_drag": None,
     "multirotor_flow_wind": 120.0,
+    "multirotor_flow_kampala": 120.0,
     "multirotor_urban_street": None,
     "ins_only_800m": 120.0,
     "paper_ismn_800m": 120.0,
