@@ -101,9 +101,9 @@ class OpticalFlowSample:
     of the camera's rotation about its x, y and z axes (at the image centre alone it would be
     [[0, -1, 0], [1, 0, 0]]; off-centre pixels move more, and the texture weighs them: about
     5 % more over 45 deg); moments_c (2, 8) or None: what the fit reads (2,) of each of the
-    flow fields, in normalised coordinates (x, y), (x, 0), (y, 0), (x^2, 0), (x y, 0), (0, x),
-    (0, y), (0, x y), (0, y^2): a tilted camera's ground lies nearer on one side, so its
-    translation's flow is such a polynomial, and the texture weighs its parts (FLOW_MOMENT_FIELDS).
+    flow fields (x, 0), (y, 0), (x^2, 0), (x y, 0), (0, x), (0, y), (0, x y), (0, y^2), x and y
+    the normalised image coordinates (FLOW_MOMENT_FIELDS): a tilted camera's ground lies nearer
+    on one side, so its translation's flow is such a polynomial, and the texture weighs its parts.
     The mounting is the installation's: the vehicle knows it."""
 
     t_s: float

@@ -8,9 +8,11 @@ translation from the previous frame (sensors.image_shift: phase correlation, the
 to a hundredth of a pixel, with the fit's covariance). The output is the ground's move in
 normalised image coordinates, translation and rotation together, as a flow chip gives it:
 removing the vehicle's own rotation (from its gyros) and scaling by the distance to the ground
-(from a rangefinder) is the navigator's job. Over ground without texture (water, bare
-fields, the sky) the fit has nothing to hold on to and the sensor says so: a small
-texture_dn2, a wide covariance, or no sample.
+(from a rangefinder) is the navigator's job. With each sample comes how the fit read the flow
+fields of a rotation and of a translation over tilted ground (rotation_c, moments_c: weighted
+by that frame's own texture), so that the navigator can predict the reading it gets. Over
+ground without texture (water, bare fields, the sky) the fit has nothing to hold on to and the
+sensor says so: a small texture_dn2, a wide covariance, or no sample.
 
 Before the fit each frame is smoothed by a Gaussian of blur_sigma_px (the lens's blur and the
 chip's pre-filter): a rendered frame of a 1 m map holds detail up to its pixels' own size
@@ -121,8 +123,8 @@ class OpticalFlowSensor(CachedSensor):
             return None
         if frame.offmap_fraction > 0.0:
             if not self._warned_offmap:
-                log.warning("optical-flow sensor %s at t=%.1f s: %.1f %% of its view is off the map (no-data); no flow is "
-                            "measured while any of it is (fly over the map, or use a larger one)",
+                log.warning("optical-flow sensor %s at t=%.1f s: %.1f %% of its view is off the map (no-data); "
+                            "no flow is measured while any of it is (fly over the map, or use a larger one)",
                             self.name, truth.t_s, 100.0 * frame.offmap_fraction)
                 self._warned_offmap = True
             return None

@@ -188,7 +188,7 @@ class ErrorStateEKF(Reacquisition):
         self.b_mag_rad = 0.0
         self.drag_scale = 0.0
         self.b_flow_rps = np.zeros(2)
-        self.flow_view_rate_rps = 0.0  # |translational flow| of the last flow sample (rad/s)
+        self.flow_view_rate_rps = 0.0  # |translational flow| of the last flow sample (rad/s), held until the next
         self.wind_ne_mps = np.zeros(2)
         self.P = np.zeros((self.n, self.n))
         self.omega_ib_b_rps = np.zeros(3)  # last bias-corrected gyro rate

@@ -112,7 +112,7 @@ class FlowVelocityAiding:
                + np.eye(2) * (s.sigma_floor_rad_s**2 + rot_sigma**2))
         # How fast the view passes over the ground: the flow's slow error decorrelates with it.
         ekf.flow_view_rate_rps = float(np.hypot(flow_t[0], flow_t[1])) / dt
-        moments = getattr(m, "moments_c", None) if s.perspective else None
+        moments = m.moments_c if s.perspective else None
         y, H, R = meas.optical_flow(ekf, flow_t / dt, R_bc, self._range[1], cov, m.lever_arm_b_m,
                                     s.depth_sigma_fraction, moments)
         return ekf.update("optical_flow", t, y, H, R)

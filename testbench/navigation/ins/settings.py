@@ -188,8 +188,9 @@ class OpticalFlowAiding(ParamsModel):
     over the Kampala orthophoto; the fit's reading, within 1 % and 1.4-1.6 %, as level
     (docs/measurements.md, "Optical flow")."""
     sigma_floor_rad_s: float = pydantic.Field(0.002, ge=0)
-    """Added in quadrature per axis to the flow rate's sigma (rad/s): what the fit cannot
-    see, such as relief and the tilt's perspective, which make the flow differ over the image."""
+    """Added in quadrature per axis to the flow rate's sigma (rad/s): what the model of the
+    reading leaves out, such as relief (and, with perspective False, the tilt's perspective),
+    which make the flow differ over the image."""
     rotation_sigma_fraction: float = pydantic.Field(0.03, ge=0)
     """Share of the camera's own rotational flow (as the sensor reads it, and as the gyros
     give it) left after it is taken out, per axis, 1 sigma: the sensor's first-order reading
