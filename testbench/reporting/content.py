@@ -36,6 +36,7 @@ KEY_METRICS = (
     "ismn.all.horizontal_error_pct_agl.mean",
     "tan.fix_rate", "tan.window_error_m.mean", "tan.horizontal_error_m.mean", "tan.horizontal_nees.mean_per_dof",
     "relnav.error_m.mean", "relnav.error_m.max", "relnav.error_less_own_heading_m.mean", "relnav.id_correct_rate", "relnav.id_ambiguous_rate", "relnav.track_id_correct_rate", "formation.error_m.rms", "formation.error_m.max",
+    "formation.holding_error_m.rms", "formation.placement_error_m.rms",
     "real_time_factor", "sim_time_s", "wall_time_s",
 )
 

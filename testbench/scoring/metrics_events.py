@@ -203,12 +203,45 @@ def compute_relnav(record: RunRecord) -> RelnavMetrics | None:
 
 
 def compute_formation(record: RunRecord) -> FormationMetrics | None:
-    """FormationMetrics from events/formation.parquet (slot errors from TRUE positions)."""
+    """FormationMetrics from events/formation.parquet (slot errors from TRUE positions), and
+    that error's two parts from the followers' own telemetry (formation_error_parts)."""
     frm = record.event("formation")
     if frm is None:
         return None
     en, ee, ed = (column(frm, f"slot_error_{a}_m") for a in ("north", "east", "down"))
+    holding, placement = formation_error_parts(frm, record.telemetry)
     return FormationMetrics(
         error_m=error_stats(np.sqrt(en * en + ee * ee + ed * ed)),
         horizontal_error_m=error_stats(np.hypot(en, ee)),
+        holding_error_m=None if holding is None else error_stats(np.linalg.norm(holding, axis=1)),
+        placement_error_m=None if placement is None else error_stats(np.linalg.norm(placement, axis=1)),
     )
+
+
+def formation_error_parts(frm: pd.DataFrame, telemetry: pd.DataFrame) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Each formation row's true slot error split in two, (n, 3) NED m each, holding +
+    placement = the true error:
+
+    - holding: the follower's estimated position less the slot it places from its own
+      estimates (its GuidanceStatus target, telemetry gd_target_*): what its controller has
+      not closed;
+    - placement: that placed slot against its true slot (the true error less the holding):
+      what its estimates (its neighbours, their layout's course, its own velocity) put wrong.
+
+    Rows are matched to the follower's telemetry row of the same record tick (times rounded
+    to the microsecond: the two tables sum their times differently). (None, None) when the
+    telemetry has no guidance target (a record from before it, or no follower controller);
+    rows without a match are NaN."""
+    cols = ["nav_north_m", "nav_east_m", "nav_down_m", "gd_target_n_m", "gd_target_e_m", "gd_target_d_m"]
+    if not all(c in telemetry.columns for c in cols):
+        return None, None
+    key = ["vehicle_id", "t_us"]
+    tel = telemetry[["vehicle_id", "t_s", *cols]].assign(t_us=np.round(telemetry["t_s"].to_numpy(float) * 1e6))
+    tel = tel.drop_duplicates(key, keep="last")
+    rows = frm[["vehicle_id", "t_s"]].assign(t_us=np.round(frm["t_s"].to_numpy(float) * 1e6))
+    joined = rows.merge(tel.drop(columns="t_s"), on=key, how="left")
+    nav = joined[cols[:3]].to_numpy(float)
+    target = joined[cols[3:]].to_numpy(float)
+    true_error = np.stack([column(frm, f"slot_error_{a}_m") for a in ("north", "east", "down")], axis=1)
+    holding = nav - target
+    return holding, true_error - holding

@@ -268,10 +268,16 @@ class RelnavMetrics(_Section):
 
 @dataclass(frozen=True)
 class FormationMetrics(_Section):
-    """Formation keeping: |true position - assigned slot| (m), 3D and horizontal."""
+    """Formation keeping: |true position - assigned slot| (m), 3D and horizontal; and its two
+    parts (3D, m; their vectors sum to the error): holding_error_m, the follower's estimated
+    position against the slot it places from its own estimates (what its control has not
+    closed), and placement_error_m, that placed slot against the true one (what its estimates
+    put wrong). See metrics_events.formation_error_parts."""
 
     error_m: ErrorStats | None = None
     horizontal_error_m: ErrorStats | None = None
+    holding_error_m: ErrorStats | None = None
+    placement_error_m: ErrorStats | None = None
 
 
 @dataclass(frozen=True)

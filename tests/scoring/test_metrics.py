@@ -206,6 +206,28 @@ def test_relnav_and_formation_and_vehicles():
     assert flat["nav.position_error_m.rms"] == pytest.approx(13.0)
     assert flat["real_time_factor"] == 2.0
     assert not any(k.startswith("ismn.") for k in flat)  # no table -> no keys
+    assert "formation.holding_error_m.rms" not in flat  # no guidance target in this telemetry
+
+
+def test_formation_error_splits_into_holding_and_placement():
+    """The follower flies 1 m north of the slot it places (holding), and places that slot
+    3 m east of the true one (placement): the true error (1, 3, 0) is their sum. The event
+    table's times sum differently from the telemetry's (0.7000000000000001 against 0.7): the
+    rows still pair up."""
+    tel = straight_telemetry(n=10, vehicle_id="b", err_ned=(0.0, 0.0, 0.0))
+    tel["gd_target_n_m"] = tel["nav_north_m"] - 1.0
+    tel["gd_target_e_m"] = tel["nav_east_m"]
+    tel["gd_target_d_m"] = tel["nav_down_m"]
+    t_event = np.cumsum(np.full(10, 0.1)) - 0.1  # 0.1 added up: 0.30000000000000004, ...
+    assert not np.array_equal(t_event, tel["t_s"].to_numpy())
+    frm = pd.DataFrame({"t_s": t_event, "vehicle_id": "b", "slot_error_north_m": 1.0,
+                        "slot_error_east_m": 3.0, "slot_error_down_m": 0.0})
+    res = score_record(record_of(tel, {"formation": frm}, vehicles=[{"id": "b"}]), metrics=[]).formation
+    assert res.error_m.rms == pytest.approx(np.sqrt(10.0))
+    assert res.holding_error_m.n == 10 and res.holding_error_m.max == pytest.approx(1.0)
+    assert res.holding_error_m.mean == pytest.approx(1.0)
+    assert res.placement_error_m.n == 10 and res.placement_error_m.mean == pytest.approx(3.0)
+    assert res.placement_error_m.max == pytest.approx(3.0)
 
 
 def test_synthetic_run_is_consistent_and_deterministic(tmp_path):
