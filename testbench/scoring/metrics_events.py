@@ -208,19 +208,20 @@ def compute_formation(record: RunRecord) -> FormationMetrics | None:
     frm = record.event("formation")
     if frm is None:
         return None
-    en, ee, ed = (column(frm, f"slot_error_{a}_m") for a in ("north", "east", "down"))
-    holding, placement = formation_error_parts(frm, record.telemetry)
+    error_ned_m = np.stack([column(frm, f"slot_error_{a}_m") for a in ("north", "east", "down")], axis=1)
+    holding, placement = formation_error_parts(frm, record.telemetry, error_ned_m)
     return FormationMetrics(
-        error_m=error_stats(np.sqrt(en * en + ee * ee + ed * ed)),
-        horizontal_error_m=error_stats(np.hypot(en, ee)),
+        error_m=error_stats(np.sqrt((error_ned_m * error_ned_m).sum(axis=1))),
+        horizontal_error_m=error_stats(np.hypot(error_ned_m[:, 0], error_ned_m[:, 1])),
         holding_error_m=None if holding is None else error_stats(np.linalg.norm(holding, axis=1)),
         placement_error_m=None if placement is None else error_stats(np.linalg.norm(placement, axis=1)),
     )
 
 
-def formation_error_parts(frm: pd.DataFrame, telemetry: pd.DataFrame) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """Each formation row's true slot error split in two, (n, 3) NED m each, holding +
-    placement = the true error:
+def formation_error_parts(frm: pd.DataFrame, telemetry: pd.DataFrame,
+                          error_ned_m: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Each formation row's true slot error error_ned_m (n, 3) NED m split in two, (n, 3)
+    each, holding + placement = the true error:
 
     - holding: the follower's estimated position less the slot it places from its own
       estimates (its GuidanceStatus target, telemetry gd_target_*): what its controller has
@@ -236,12 +237,8 @@ def formation_error_parts(frm: pd.DataFrame, telemetry: pd.DataFrame) -> tuple[n
     if not all(c in telemetry.columns for c in cols):
         return None, None
     key = ["vehicle_id", "t_us"]
-    tel = telemetry[["vehicle_id", "t_s", *cols]].assign(t_us=np.round(telemetry["t_s"].to_numpy(float) * 1e6))
-    tel = tel.drop_duplicates(key, keep="last")
-    rows = frm[["vehicle_id", "t_s"]].assign(t_us=np.round(frm["t_s"].to_numpy(float) * 1e6))
-    joined = rows.merge(tel.drop(columns="t_s"), on=key, how="left")
-    nav = joined[cols[:3]].to_numpy(float)
-    target = joined[cols[3:]].to_numpy(float)
-    true_error = np.stack([column(frm, f"slot_error_{a}_m") for a in ("north", "east", "down")], axis=1)
-    holding = nav - target
-    return holding, true_error - holding
+    tel = telemetry[["vehicle_id", *cols]].assign(t_us=np.round(telemetry["t_s"].to_numpy(float) * 1e6))
+    rows = frm[["vehicle_id"]].assign(t_us=np.round(frm["t_s"].to_numpy(float) * 1e6))
+    joined = rows.merge(tel.drop_duplicates(key, keep="last"), on=key, how="left")
+    holding = joined[cols[:3]].to_numpy(float) - joined[cols[3:]].to_numpy(float)
+    return holding, error_ned_m - holding
