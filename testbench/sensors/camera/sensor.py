@@ -2,7 +2,9 @@
 
 `CameraSensor` (registered as sensor type "camera") holds the camera model of the paper's
 table 1 (size, intrinsics or field of view, lens distortion, noise, clipping, mounting angles
-and lever arm, frame rate, exposure/gain, vignetting, motion blur). At each frame it asks the
+and lever arm, frame rate, exposure/gain, vignetting, motion blur). Its mounting as calibrated
+(`.mount`, what navigation is given) can differ from the mounting that renders
+(`.true_mount`) by a boresight error (`mount_error_deg`, `mount_error_sigma_deg`). At each frame it asks the
 world for the imagery (and elevation) under its footprint at a suitable ground sample, the
 other vehicles in view with their LED states, and which regions to render (a relative-
 navigation aid may ask for regions around its tracks only); then it calls the pure renderer.
@@ -25,7 +27,7 @@ from testbench.core.errors import InputError
 from testbench.core.interfaces import BuildContext, Sensor
 from testbench.core.messages import TruthState
 from testbench.core.registry import ParamsModel, register
-from testbench.core.rotations import quat_to_dcm
+from testbench.core.rotations import euler_to_dcm, quat_to_dcm
 from testbench.sensors.camera.render import render
 from testbench.sensors.camera.types import RenderedFrame, RenderOptions, VehicleAppearance, VehicleTruth
 from testbench.sensors.camera.vehicles import draw_vehicles
@@ -61,8 +63,9 @@ class CameraFrame:
     were rendered; regions: the rendered parts (RenderedFrame, each with its roi and the truth of
     the vehicles it shows); vehicles: truth annotations (full-frame pixels) of the other vehicles;
     offmap_fraction: share of the rendered pixels that look at ground off the map (no-data);
-    camera, mount: the camera model (K, distortion) and mounting (R_bc camera->body, lever arm)
-    that rendered the frame, so that navigation can use K and R_bc.
+    camera, mount: the camera model (K, distortion) and the mounting as calibrated (R_bc
+    camera->body, lever arm: CameraSensor.mount, not the true one when the camera has a
+    boresight error), which is what navigation may use.
     """
 
     t_s: float
@@ -99,6 +102,12 @@ class CameraParams(ParamsModel):
     mount_pitch_deg: float = -90.0
     mount_yaw_deg: float = 0.0
     lever_arm_b_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    mount_error_deg: tuple[float, float, float] = pydantic.Field(
+        (0.0, 0.0, 0.0), description="boresight error: the true mounting turned from the calibrated one by these "
+        "roll, pitch, yaw angles about the body's x, y, z axes (deg; Z-Y-X); navigation knows only the calibrated one")
+    mount_error_sigma_deg: float = pydantic.Field(
+        0.0, ge=0, description="a random boresight error on top of mount_error_deg, drawn per axis once per run "
+        "(deg, 1 sigma) from the camera's seeded stream at its first frame")
     gain: float = pydantic.Field(1.0, gt=0)
     vignetting: float = pydantic.Field(0.0, ge=0, le=1)
     exposure_s: float = pydantic.Field(0.0, ge=0, description="motion blur from body rates over the exposure")
@@ -136,8 +145,13 @@ class CameraSensor(Sensor):
             self.camera = PinholeCamera(p.width_px, p.height_px, p.fx, fy, cx, cy, dist)
         else:
             self.camera = PinholeCamera.from_hfov(p.width_px, p.height_px, p.hfov_deg, dist)
-        # Camera -> body from the mounting angles (core.camera_geometry convention).
+        # Camera -> body from the mounting angles (core.camera_geometry convention): the mounting
+        # as calibrated, which is all navigation is given. The true one renders; it differs by
+        # the boresight error, whose random part is drawn at the first frame (as the IMU draws
+        # its turn-on biases), so a camera without one draws nothing from its stream.
         self.mount = CameraMount(mount_rotation(p.mount_roll_deg, p.mount_pitch_deg, p.mount_yaw_deg), np.asarray(p.lever_arm_b_m, float))
+        self.true_mount = _misaligned(self.mount, np.asarray(p.mount_error_deg, float))
+        self._mount_error_drawn = p.mount_error_sigma_deg == 0.0
         self._options = RenderOptions(
             near_m=p.near_m, far_m=p.far_m, noise_mean=p.noise_mean, noise_std=p.noise_std, gain=p.gain,
             vignetting=p.vignetting, haze_visibility_m=p.haze_visibility_m,
@@ -157,12 +171,14 @@ class CameraSensor(Sensor):
 
     # -- internals ------------------------------------------------------------------------
     def _render(self, truth: TruthState, world: Any, rng: np.random.Generator) -> CameraFrame | None:
+        if not self._mount_error_drawn:
+            self._draw_mount_error(rng)
         R_nb = quat_to_dcm(truth.q_nb_wxyz)  # body -> NED (true attitude)
         pos = truth.pos_ned_m
         requests = world.render_requests(self.name) if hasattr(world, "render_requests") else None
         if requests is not None and len(requests) == 0:
             return None  # the aid asked for nothing this frame: nothing to render
-        centre, R_nc = camera_pose_ned(pos, R_nb, self.mount)
+        centre, R_nc = camera_pose_ned(pos, R_nb, self.true_mount)
         if not self.params.render_image:
             return self._annotations_only(truth, world, centre, R_nc, requests)
         imagery = None
@@ -183,7 +199,7 @@ class CameraSensor(Sensor):
         parts = []
         for roi in rois:
             full = roi is not None and tuple(roi) == (0, 0, self.camera.width_px, self.camera.height_px)
-            parts.append(render(self.camera, self.mount, pos, R_nb, imagery, elevation, vehicles=vehicles, rng=rng,
+            parts.append(render(self.camera, self.true_mount, pos, R_nb, imagery, elevation, vehicles=vehicles, rng=rng,
                                 roi=None if full else roi, options=opts, obstacles=obstacles))
         whole = next((p for p in parts if p.roi is None), None)
         truths = _merge_truths(parts)
@@ -196,6 +212,14 @@ class CameraSensor(Sensor):
             self._warned_offmap = True
         return CameraFrame(truth.t_s, self.name, None if whole is None else whole.image, tuple(parts), truths, offmap,
                            self.camera, self.mount)
+
+    def _draw_mount_error(self, rng: np.random.Generator) -> None:
+        """The run's random boresight error (mount_error_sigma_deg per axis), on top of the fixed one."""
+        p = self.params
+        error_deg = np.asarray(p.mount_error_deg, float) + p.mount_error_sigma_deg * rng.standard_normal(3)
+        self.true_mount = _misaligned(self.mount, error_deg)
+        self._mount_error_drawn = True
+        log.info("camera %s: boresight error %.4f / %.4f / %.4f deg (roll / pitch / yaw, body axes)", self.name, *error_deg)
 
     def _annotations_only(self, truth: TruthState, world: Any, centre: np.ndarray, R_nc: np.ndarray, requests) -> CameraFrame:
         """A frame without pixels: zero-stride black images of the requested regions, with the
@@ -246,6 +270,15 @@ class CameraSensor(Sensor):
         extent = max(n1 - n0, e1 - e0)
         gsd = max(gsd_near, extent / self.params.max_window_px)
         return (float(n0), float(n1), float(e0), float(e1)), float(gsd)
+
+
+def _misaligned(mount: CameraMount, error_rpy_deg: np.ndarray) -> CameraMount:
+    """The mounting turned by a boresight error: R_bc_true = R_err R_bc, R_err the Z-Y-X rotation
+    by error_rpy_deg (3,) about the body axes (deg); the lever arm is unchanged. Body axes rather
+    than the mounting angles because a nadir camera (pitch -90 deg) is gimbal-locked in those."""
+    if not np.any(error_rpy_deg):
+        return mount
+    return CameraMount(euler_to_dcm(np.radians(error_rpy_deg)) @ mount.R_bc, mount.lever_arm_b_m)
 
 
 def _ground_height(world: Any, centre: np.ndarray) -> float:

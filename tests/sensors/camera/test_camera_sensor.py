@@ -92,3 +92,49 @@ def test_frame_carries_camera_model_and_mount():
     frame = cam.measure(make_truth(0.0), TinyWorld(), np.random.default_rng(0))
     assert frame.camera == cam.camera
     assert np.allclose(frame.mount.R_bc, cam.mount.R_bc)
+
+
+def test_boresight_error_renders_with_the_true_mount_and_tells_navigation_the_calibrated_one():
+    """A nadir camera whose true mounting is pitched 2 deg off the calibrated one renders what a
+    camera mounted at -88 deg renders (the Z-Y-X error about body y composes with the mounting's
+    pitch), while its frames and `.mount` carry the calibrated -90 deg."""
+    truth = make_truth(0.0, pos_ned_m=(5.0, 3.0, -100.0))
+    misaligned = _sensor(noise_std=0.0, mount_error_deg=(0.0, 2.0, 0.0))
+    tilted = _sensor(noise_std=0.0, mount_pitch_deg=-88.0)
+    w1, w2 = TinyWorld(), TinyWorld()
+    f1 = misaligned.measure(truth, w1, np.random.default_rng(0))
+    f2 = tilted.measure(truth, w2, np.random.default_rng(0))
+    (b1, g1), = w1.asked
+    (b2, g2), = w2.asked
+    assert np.allclose(b1, b2, rtol=0, atol=1e-9) and g1 == pytest.approx(g2)
+    # The same pose to the last bits of R_bc: at most a DN here and there from the resampling.
+    assert np.abs(f1.image.astype(int) - f2.image.astype(int)).mean() < 0.01
+    assert np.allclose(f1.mount.R_bc, _sensor().mount.R_bc) and f1.mount is misaligned.mount
+    assert np.allclose(misaligned.true_mount.R_bc, tilted.mount.R_bc)
+    # The footprint moved forward (north at zero heading), as a 2 deg forward tilt moves it.
+    nominal_world = TinyWorld()
+    _sensor(noise_std=0.0).measure(truth, nominal_world, np.random.default_rng(0))
+    ((n0, n1, _, _), _), = nominal_world.asked
+    assert (b1[0] + b1[1]) / 2 - (n0 + n1) / 2 > 0.9 * 100.0 * np.tan(np.radians(2.0))
+
+
+def test_random_boresight_error_is_drawn_once_from_the_seed():
+    """mount_error_sigma_deg: one draw per axis at the first frame, the same for the same
+    stream, another for another; the calibrated mount is untouched."""
+    truth = make_truth(0.0, pos_ned_m=(0.0, 0.0, -100.0))
+
+    def true_R(seed):
+        cam = _sensor(noise_std=0.0, mount_error_sigma_deg=0.1)
+        assert np.array_equal(cam.true_mount.R_bc, cam.mount.R_bc)  # not drawn before a frame
+        cam.measure(truth, TinyWorld(), np.random.default_rng(seed))
+        first = cam.true_mount.R_bc.copy()
+        cam.measure(make_truth(0.2, pos_ned_m=(0.0, 0.0, -100.0)), TinyWorld(), np.random.default_rng(seed + 7))
+        assert np.array_equal(cam.true_mount.R_bc, first)  # once per run
+        assert np.allclose(cam.mount.R_bc, _sensor().mount.R_bc)
+        return first
+
+    a, b, c = true_R(1), true_R(1), true_R(2)
+    assert np.array_equal(a, b) and not np.allclose(a, c)
+    nominal = _sensor().mount.R_bc
+    angle_deg = np.degrees(np.arccos(np.clip((np.trace(nominal.T @ a) - 1.0) / 2.0, -1.0, 1.0)))
+    assert 0.0 < angle_deg < 0.6  # a 0.1 deg sigma per axis: about 0.16 deg in all
