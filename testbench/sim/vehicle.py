@@ -120,6 +120,9 @@ def build_vehicle(scn: Scenario, v: Vehicle, world: RunWorld, streams: RngStream
         name = s.sensor_name
         sensor = registry.build("sensor", s.type, s.params, f"{base}.sensors[{name}]", ctx=ctx_sensor)
         sensor.name = name
+        draw = getattr(sensor, "draw_constant_errors", None)
+        if draw is not None:  # the run's constant errors (a camera's boresight), from their own stream
+            draw(streams.generator("vehicle", v.id, "sensor", name, "constant_errors"))
         every = decimation(float(sensor.rate_hz), P, f"{base}.sensors[{name}].rate_hz")
         sensors.append(SensorSlot(name, sensor, streams.generator("vehicle", v.id, "sensor", name), every,
                                   getattr(sensor, "event_rows", None)))
@@ -141,6 +144,9 @@ def build_vehicle(scn: Scenario, v: Vehicle, world: RunWorld, streams: RngStream
         )
         for i, a in enumerate(v.aids)
     ]
+    check = getattr(navigator, "check_aids", None)
+    if check is not None:  # the navigator's states may need what an aid offers (bad input: exit 2)
+        check(aids, f"{base}.navigation")
     mission = None
     if v.mission is not None:
         mission = registry.build("mission", v.mission.type, v.mission.params, f"{base}.mission", ctx=ctx_onboard)

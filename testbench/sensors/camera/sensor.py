@@ -107,7 +107,7 @@ class CameraParams(ParamsModel):
         "roll, pitch, yaw angles about the body's x, y, z axes (deg; Z-Y-X); navigation knows only the calibrated one")
     mount_error_sigma_deg: float = pydantic.Field(
         0.0, ge=0, description="a random boresight error on top of mount_error_deg, drawn per axis once per run "
-        "(deg, 1 sigma) from the camera's seeded stream at its first frame")
+        "(deg, 1 sigma) from the run's seeded streams when the vehicle is built")
     gain: float = pydantic.Field(1.0, gt=0)
     vignetting: float = pydantic.Field(0.0, ge=0, le=1)
     exposure_s: float = pydantic.Field(0.0, ge=0, description="motion blur from body rates over the exposure")
@@ -147,11 +147,11 @@ class CameraSensor(Sensor):
             self.camera = PinholeCamera.from_hfov(p.width_px, p.height_px, p.hfov_deg, dist)
         # Camera -> body from the mounting angles (core.camera_geometry convention): the mounting
         # as calibrated, which is all navigation is given. The true one renders; it differs by
-        # the boresight error, whose random part is drawn at the first frame (as the IMU draws
-        # its turn-on biases), so a camera without one draws nothing from its stream.
+        # the boresight error, whose random part draw_constant_errors adds.
         self.mount = CameraMount(mount_rotation(p.mount_roll_deg, p.mount_pitch_deg, p.mount_yaw_deg), np.asarray(p.lever_arm_b_m, float))
-        self.true_mount = _misaligned(self.mount, np.asarray(p.mount_error_deg, float))
-        self._mount_error_drawn = p.mount_error_sigma_deg == 0.0
+        self.boresight_error_deg = np.asarray(p.mount_error_deg, float)
+        """(3,) the true mounting's turn from the calibrated one (roll, pitch, yaw about body x, y, z; deg)."""
+        self.true_mount = _misaligned(self.mount, self.boresight_error_deg)
         self._options = RenderOptions(
             near_m=p.near_m, far_m=p.far_m, noise_mean=p.noise_mean, noise_std=p.noise_std, gain=p.gain,
             vignetting=p.vignetting, haze_visibility_m=p.haze_visibility_m,
@@ -170,9 +170,20 @@ class CameraSensor(Sensor):
         return frame
 
     # -- internals ------------------------------------------------------------------------
+    def draw_constant_errors(self, rng: np.random.Generator) -> None:
+        """Draw the run's random boresight error (mount_error_sigma_deg per axis, on top of
+        mount_error_deg) from rng, a stream of its own (the engine's vehicle builder calls it
+        once, before the run: so the record holds it, whichever process renders). Nothing is
+        drawn without a sigma."""
+        p = self.params
+        if p.mount_error_sigma_deg == 0.0:
+            return
+        self.boresight_error_deg = np.asarray(p.mount_error_deg, float) + p.mount_error_sigma_deg * rng.standard_normal(3)
+        self.true_mount = _misaligned(self.mount, self.boresight_error_deg)
+        log.info("camera %s: boresight error %.4f / %.4f / %.4f deg (roll / pitch / yaw, body axes)",
+                 self.name, *self.boresight_error_deg)
+
     def _render(self, truth: TruthState, world: Any, rng: np.random.Generator) -> CameraFrame | None:
-        if not self._mount_error_drawn:
-            self._draw_mount_error(rng)
         R_nb = quat_to_dcm(truth.q_nb_wxyz)  # body -> NED (true attitude)
         pos = truth.pos_ned_m
         requests = world.render_requests(self.name) if hasattr(world, "render_requests") else None
@@ -212,14 +223,6 @@ class CameraSensor(Sensor):
             self._warned_offmap = True
         return CameraFrame(truth.t_s, self.name, None if whole is None else whole.image, tuple(parts), truths, offmap,
                            self.camera, self.mount)
-
-    def _draw_mount_error(self, rng: np.random.Generator) -> None:
-        """The run's random boresight error (mount_error_sigma_deg per axis), on top of the fixed one."""
-        p = self.params
-        error_deg = np.asarray(p.mount_error_deg, float) + p.mount_error_sigma_deg * rng.standard_normal(3)
-        self.true_mount = _misaligned(self.mount, error_deg)
-        self._mount_error_drawn = True
-        log.info("camera %s: boresight error %.4f / %.4f / %.4f deg (roll / pitch / yaw, body axes)", self.name, *error_deg)
 
     def _annotations_only(self, truth: TruthState, world: Any, centre: np.ndarray, R_nc: np.ndarray, requests) -> CameraFrame:
         """A frame without pixels: zero-stride black images of the requested regions, with the

@@ -119,22 +119,24 @@ def test_boresight_error_renders_with_the_true_mount_and_tells_navigation_the_ca
 
 
 def test_random_boresight_error_is_drawn_once_from_the_seed():
-    """mount_error_sigma_deg: one draw per axis at the first frame, the same for the same
-    stream, another for another; the calibrated mount is untouched."""
-    truth = make_truth(0.0, pos_ned_m=(0.0, 0.0, -100.0))
+    """mount_error_sigma_deg: one draw per axis (draw_constant_errors, before the run), the
+    same for the same stream, another for another; the calibrated mount is untouched, and
+    without a sigma nothing is drawn."""
 
-    def true_R(seed):
-        cam = _sensor(noise_std=0.0, mount_error_sigma_deg=0.1)
-        assert np.array_equal(cam.true_mount.R_bc, cam.mount.R_bc)  # not drawn before a frame
-        cam.measure(truth, TinyWorld(), np.random.default_rng(seed))
-        first = cam.true_mount.R_bc.copy()
-        cam.measure(make_truth(0.2, pos_ned_m=(0.0, 0.0, -100.0)), TinyWorld(), np.random.default_rng(seed + 7))
-        assert np.array_equal(cam.true_mount.R_bc, first)  # once per run
+    def drawn(seed, sigma=0.1):
+        cam = _sensor(noise_std=0.0, mount_error_sigma_deg=sigma)
+        assert np.array_equal(cam.true_mount.R_bc, cam.mount.R_bc)  # not drawn yet
+        rng = np.random.default_rng(seed)
+        cam.draw_constant_errors(rng)
         assert np.allclose(cam.mount.R_bc, _sensor().mount.R_bc)
-        return first
+        return cam, rng
 
-    a, b, c = true_R(1), true_R(1), true_R(2)
-    assert np.array_equal(a, b) and not np.allclose(a, c)
+    (a, _), (b, _), (c, _) = drawn(1), drawn(1), drawn(2)
+    assert np.array_equal(a.true_mount.R_bc, b.true_mount.R_bc) and not np.allclose(a.true_mount.R_bc, c.true_mount.R_bc)
     nominal = _sensor().mount.R_bc
-    angle_deg = np.degrees(np.arccos(np.clip((np.trace(nominal.T @ a) - 1.0) / 2.0, -1.0, 1.0)))
+    angle_deg = np.degrees(np.arccos(np.clip((np.trace(nominal.T @ a.true_mount.R_bc) - 1.0) / 2.0, -1.0, 1.0)))
     assert 0.0 < angle_deg < 0.6  # a 0.1 deg sigma per axis: about 0.16 deg in all
+    assert angle_deg == pytest.approx(np.linalg.norm(a.boresight_error_deg), rel=1e-3)
+    none, rng = drawn(1, sigma=0.0)
+    assert np.array_equal(none.true_mount.R_bc, none.mount.R_bc)
+    assert rng.standard_normal() == np.random.default_rng(1).standard_normal()  # the stream untouched
