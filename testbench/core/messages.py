@@ -188,6 +188,14 @@ class PositionFix:
     image alone gives, independent of the navigator's attitude, and its 1-sigma; None when the
     producer does not offer one.
 
+    image_pos_ned_m (3,), image_R_nb (3, 3), image_pose_cov (6, 6): the pose the image alone gives,
+    independent of the navigator (a scene matcher's pose solve without its INS prior): the body
+    position (NED m at the origin) and attitude (body -> NED) through the camera's calibrated
+    mounting, and their joint covariance [position NED m, attitude NED small angles rad]. A
+    navigator that carries the camera's boresight error as states fuses this pose instead of
+    pos_ned_m (the image's attitude against the INS attitude is what shows the boresight);
+    None when the producer does not offer it.
+
     vel_lag_s, tau (s) or a (3, 3) matrix L (s, NED): the producer found the position tau s
     before t_s and carried it to t_s on the navigator's own estimated velocity (terrain-aided
     navigation: a window's offset from a dead-reckoned track), so its error holds
@@ -205,6 +213,9 @@ class PositionFix:
     heading_rad: float | None = None
     heading_sigma_rad: float | None = None
     vel_lag_s: float | np.ndarray | None = None
+    image_pos_ned_m: np.ndarray | None = None
+    image_R_nb: np.ndarray | None = None
+    image_pose_cov: np.ndarray | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -233,6 +244,10 @@ class NavEstimate:
     wind_ne_mps (2,), cov_wind_ne_m2s2 (2, 2): the estimated horizontal wind (the air's
         velocity over the ground, north and east) and its covariance, when the navigator
         estimates the wind, else None.
+    camera_boresight_b_rad (3,), cov_camera_boresight_rad2 (3, 3): the estimated boresight
+        error of the scene-matching camera (body axes, rad: its true mounting is Exp(b) R_bc)
+        and its covariance, when the navigator estimates it, else None. A scene matcher seeds
+        its solve with the mounting corrected by it.
     """
 
     t_s: float
@@ -247,6 +262,8 @@ class NavEstimate:
     airspeed_mps: float | None = None
     wind_ne_mps: np.ndarray | None = None
     cov_wind_ne_m2s2: np.ndarray | None = None
+    camera_boresight_b_rad: np.ndarray | None = None
+    cov_camera_boresight_rad2: np.ndarray | None = None
 
 
 @dataclass(frozen=True, slots=True)

@@ -106,6 +106,12 @@ class IsmnAid(NavigationAid):
         self._n = 0
         self._next_example_t = 0.0
 
+    @property
+    def offers_image_pose(self) -> bool:
+        """Whether its fixes carry the image-only pose (pipeline.pose_from_image), which a
+        navigator with camera boresight states needs."""
+        return self.pipeline.p.pose_from_image
+
     def accepts(self, measurement: Any) -> bool:
         return getattr(measurement, "camera_name", None) == self.params.camera and hasattr(measurement, "image")
 

@@ -11,6 +11,7 @@ LocalRaster). The fix goes to the EKF, which gates it; this module reports quali
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 import time
@@ -23,6 +24,7 @@ import pydantic
 from testbench.core.camera_geometry import CameraMount, PinholeCamera, camera_pose_ned
 from testbench.core.messages import NavEstimate, PositionFix
 from testbench.core.registry import ParamsModel
+from testbench.core.rotations import quat_to_dcm, rotvec_to_quat
 from testbench.navigation.fix_quality import appearance_gain
 from testbench.navigation.ismn.area import NccMatcher
 from testbench.navigation.ismn.mapcache import MapWindowCache, quantise_gsd
@@ -82,6 +84,20 @@ class IsmnParams(ParamsModel):
     """Added in quadrature to that heading's sigma: the camera-to-IMU boresight's yaw, which no
     image can see (the simulated mount is exact; a calibrated real one is known to a few
     hundredths of a degree)."""
+    pose_from_image: bool = False
+    """Give each fix the pose the image alone fixes (PositionFix.image_pos_ned_m, image_R_nb,
+    image_pose_cov: the pose solve without the INS prior, its centre-attitude cross terms kept,
+    the same floors on the position as the fix's), for a navigator that carries the camera's
+    boresight error as states (InsEkfParams.camera_boresight): the image's attitude against the
+    INS attitude is what shows that error, and a filter fusing the image's pose does the MAP
+    solve's work itself, with the boresight in its prior."""
+    attitude_floor_deg: float = pydantic.Field(0.03, ge=0.0)
+    """Added in quadrature to each axis of that pose's attitude sigma: what the tiles share
+    moves the image-only attitude as it moves the centre, the same from fix to fix over the
+    same ground (paper_ismn_800m frames at the true pose: 0.014 / 0.020 / 0.013 deg RMS roll /
+    pitch / heading). Taken as white, 0.01 deg left the filter overconfident (paper_ismn_800m
+    with camera_boresight, 200 s: attitude NEES 3.6 and position 4.0 for 3 dof, against 2.2 and
+    3.5 with 0.03 deg)."""
     max_heading_sigma_deg: float | None = None
     """No fix while the estimate's heading sigma exceeds this (None: always try). A heading error
     rotates the ortho view against the map, and the area matchers search translations: their
@@ -147,6 +163,37 @@ class IsmnPipeline:
         native = self.p.gsd_m or getattr(rm, "gsd_m", None) or getattr(rm, "native_gsd_m", None)
         return quantise_gsd(max(g, extent / self.p.max_ortho_px), native)
 
+    def _seed(self, estimate: NavEstimate, R_nb: np.ndarray) -> tuple[CameraMount, NavEstimate]:
+        """The mounting and the estimate the solve is seeded with: the calibrated mounting and
+        the estimate itself, or, when the navigator estimates the camera's boresight
+        (NavEstimate.camera_boresight_b_rad, body axes), the mounting corrected by it and the
+        estimate's attitude covariance widened by its uncertainty in NED (C P_b C^T): the
+        camera's attitude is what the window, the ortho view and the prior need."""
+        b = estimate.camera_boresight_b_rad
+        if b is None:
+            return self.mount, estimate
+        mount = CameraMount(quat_to_dcm(rotvec_to_quat(np.asarray(b, float))) @ self.mount.R_bc, self.mount.lever_arm_b_m)
+        cov_att = (np.asarray(estimate.cov_att_rad2, float)
+                   + R_nb @ np.asarray(estimate.cov_camera_boresight_rad2, float) @ R_nb.T)
+        return mount, dataclasses.replace(estimate, cov_att_rad2=cov_att)
+
+    def _image_pose(self, sol, R_nc_seed: np.ndarray, floor_ned_m2: np.ndarray):
+        """(body position (3,) NED m, R_nb (3, 3), covariance (6, 6)) of the image-only pose of
+        the solve `sol` (seeded with the camera attitude R_nc_seed (3, 3), camera -> NED)
+        through the calibrated mount (PositionFix.image_*), the position floors
+        floor_ned_m2 (3, 3) and attitude_floor_deg added; (None, None, None) when the image
+        alone does not fix the pose."""
+        if sol.centre_img_ned_m is None:
+            return None, None, None
+        # Through the calibrated mounting, whatever the seed's (the navigator's measurement model).
+        R_nb = quat_to_dcm(rotvec_to_quat(sol.att_img_ned_rad)) @ R_nc_seed @ self.mount.R_bc.T
+        lever = np.asarray(self.mount.lever_arm_b_m, float)
+        pos = sol.centre_img_ned_m - R_nb @ lever
+        cov = np.array(sol.cov_pose_img, float)
+        cov[:3, :3] += floor_ned_m2
+        cov[3:, 3:] += math.radians(self.p.attitude_floor_deg) ** 2 * np.eye(3)
+        return pos, R_nb, cov
+
     def _appearance_sigma_m(self, quality: float) -> float:
         """The appearance term of the claim (m) at a fix's quality (IsmnParams.appearance_sigma_m)."""
         p = self.p
@@ -161,7 +208,11 @@ class IsmnPipeline:
         t0 = time.perf_counter()
         p = self.p
         pos, R_nb = estimate_pose(estimate)
-        centre, R_nc = camera_pose_ned(pos, R_nb, self.mount)
+        # The heading gate reads the INS's own heading: a boresight's yaw is learnt from the
+        # fixes alone, and a gate on the camera's would wait for it for ever.
+        heading_sigma = math.sqrt(max(float(np.asarray(estimate.cov_att_rad2, float)[2, 2]), 0.0))
+        mount, estimate = self._seed(estimate, R_nb)
+        centre, R_nc = camera_pose_ned(pos, R_nb, mount)
         ground_down, height_fn = self._ground(centre, R_nc)
         height = ground_down - centre[2]
         fp = footprint_bounds(centre, R_nc, self.camera, ground_down, self.ortho.max_off_nadir_rad)
@@ -173,13 +224,12 @@ class IsmnPipeline:
         if height <= 0 or fp is None:
             lat["window"] = 1e3 * (time.perf_counter() - t0)
             return fail("camera sees no ground")
-        heading_sigma = math.sqrt(max(float(np.asarray(estimate.cov_att_rad2, float)[2, 2]), 0.0))
         if p.max_heading_sigma_deg is not None and heading_sigma > math.radians(p.max_heading_sigma_deg):
             lat["window"] = 1e3 * (time.perf_counter() - t0)
             return fail(f"heading sigma {math.degrees(heading_sigma):.2f} deg > {p.max_heading_sigma_deg} deg: "
                         "waiting for the heading to settle", attempted=False)
         g = self._gsd(height, fp)
-        win = predict_search_window(estimate, self.camera, self.mount, ground_down, g, n_sigma=p.n_sigma,
+        win = predict_search_window(estimate, self.camera, mount, ground_down, g, n_sigma=p.n_sigma,
                                     margin_m=p.margin_m, max_off_nadir_rad=self.ortho.max_off_nadir_rad)
         b = win.bounds_ne_m
         if self._maps is not None:
@@ -262,8 +312,8 @@ class IsmnPipeline:
         if sol is None:
             return fail("pose solve failed", **keep)
         keep.update(n_inliers=int(sol.inliers.sum()))
-        R_nb_fix = sol.R_nc @ self.mount.R_bc.T  # camera->NED times body->camera
-        pos_fix = sol.centre_ned_m - R_nb_fix @ np.asarray(self.mount.lever_arm_b_m, float)
+        R_nb_fix = sol.R_nc @ mount.R_bc.T  # camera->NED times body->camera
+        pos_fix = sol.centre_ned_m - R_nb_fix @ np.asarray(mount.lever_arm_b_m, float)
         jump = float(np.hypot(*(pos_fix[:2] - pos[:2])))
         if jump > p.max_jump_factor * win.margin_m + 2 * g:
             return fail(f"fix {jump:.0f} m from the estimate, outside the search window", **keep)
@@ -282,8 +332,13 @@ class IsmnPipeline:
         if p.heading_from_image and sol.att_img_ned_rad is not None:
             heading, heading_sigma = image_heading(sol.att_img_ned_rad, sol.cov_att_img_rad2, R_nb)
             heading_sigma = math.hypot(heading_sigma, math.radians(p.heading_floor_deg))
+        # Without tiles the correspondences are the seed's own ortho grid shifted by one offset:
+        # they hold the seed's attitude, not the image's, so there is no image-only pose to give.
+        tiled = shared_px == 0.0
+        image_pose = self._image_pose(sol, R_nc, floor) if p.pose_from_image and tiled else (None, None, None)
         fix = PositionFix(float(t_s), pos_fix, cov, quality, "ismn",
                           att_sensitivity_m_per_rad=sol.att_sensitivity_m_per_rad if coupled else None,
                           cov_given_att_ned_m2=sol.cov_centre_given_att_m2 + floor if coupled else None,
-                          heading_rad=heading, heading_sigma_rad=heading_sigma)
+                          heading_rad=heading, heading_sigma_rad=heading_sigma,
+                          image_pos_ned_m=image_pose[0], image_R_nb=image_pose[1], image_pose_cov=image_pose[2])
         return fix, IsmnDiagnostics(t_s, dict(lat), **{**keep, "peak_quality": quality})

@@ -60,6 +60,13 @@ class PoseSolution:
     cov_att_img_rad2: np.ndarray | None = None
     """(3, 3) its covariance (NED small angles), from the image alone: independent of the
     prior, so a filter may fuse it as a measurement of its own attitude."""
+    centre_img_ned_m: np.ndarray | None = None
+    """(3,) the camera centre of the same image-only solution (NED m); None with att_img_ned_rad."""
+    cov_pose_img: np.ndarray | None = None
+    """(6, 6) the covariance of the image-only pose [centre (NED m), psi (NED rad)], the
+    position-attitude cross terms included (a tilt and a shift of the camera move the points
+    near the image centre alike): what a filter fuses when it takes the image's pose as one
+    measurement instead of the MAP centre (ismn pose_from_image)."""
 
 
 def _exp(rotvec):
@@ -202,11 +209,10 @@ def solve_camera_pose(
         cov_img = (cov @ A_img @ cov)[:3, :3]
     else:
         M, cov_img = np.zeros((3, 3)), cov[:3, :3]
-    att_img, cov_att_img = _image_only_attitude(A_img, b_img, R, np.asarray(R_nc0, float), cov_att,
-                                                P_prior_inv is not None)
+    img = _image_only_pose(A_img, b_img, c, R, np.asarray(R_nc0, float), cov, P_prior_inv is not None)
     rms = float(np.sqrt(np.mean(np.sum(r**2, axis=1)))) if len(r) else float("nan")
     return PoseSolution(c, R, 0.5 * (cov[:3, :3] + cov[:3, :3].T), cov_att, inl, rms,
-                        M, 0.5 * (cov_img + cov_img.T), att_img, cov_att_img)
+                        M, 0.5 * (cov_img + cov_img.T), *img)
 
 
 def image_heading(att_img_ned_rad: np.ndarray, cov_att_img_rad2: np.ndarray, R_nb_seed: np.ndarray) -> tuple[float, float]:
@@ -218,20 +224,31 @@ def image_heading(att_img_ned_rad: np.ndarray, cov_att_img_rad2: np.ndarray, R_n
     return float(dcm_to_euler(R_nb)[2]), float(np.sqrt(max(h @ np.asarray(cov_att_img_rad2, float) @ h, 0.0)))
 
 
-def _image_only_attitude(A_img, b_img, R, R_nc0, cov_att, had_prior: bool):
-    """(psi (3,), cov (3, 3)) of the attitude the image alone gives (PoseSolution.att_img_ned_rad),
-    or (None, None) when its normal equations are singular."""
-    if not had_prior:
-        return _log(R @ R_nc0.T), cov_att
-    # The MAP solution balances the image's pull against the prior's; the image's own optimum
-    # is one Gauss-Newton step of its normal equations away (the problem is near-linear there).
-    try:
-        cov = np.linalg.inv(A_img)
-    except np.linalg.LinAlgError:
-        return None, None
-    step = cov @ b_img
-    if not (np.all(np.isfinite(step)) and np.all(np.isfinite(cov))):
-        return None, None
-    R_img = R @ _exp(step[3:])
-    cov_ned = R @ cov[3:, 3:] @ R.T
-    return _log(R_img @ R_nc0.T), 0.5 * (cov_ned + cov_ned.T)
+def _image_only_pose(A_img, b_img, c, R, R_nc0, cov, had_prior: bool):
+    """(psi (3,), cov_psi (3, 3), centre (3,), cov_pose (6, 6)) of the pose the image alone gives
+    (PoseSolution.att_img_ned_rad, cov_att_img_rad2, centre_img_ned_m, cov_pose_img), all None
+    when its normal equations are singular. c, R: the solution; cov (6, 6): its covariance in
+    the solve's [dc_n, delta_c] (camera-frame rotation) parameters."""
+    if had_prior:
+        # The MAP solution balances the image's pull against the prior's; the image's own
+        # optimum is one Gauss-Newton step of its normal equations away (the problem is
+        # near-linear there).
+        try:
+            cov = np.linalg.inv(A_img)
+        except np.linalg.LinAlgError:
+            return None, None, None, None
+        step = cov @ b_img
+        if not (np.all(np.isfinite(step)) and np.all(np.isfinite(cov))):
+            return None, None, None, None
+        c, R_img = c + step[:3], R @ _exp(step[3:])
+    else:
+        R_img = R
+    # delta_c (R_nc Exp(delta)) is psi = R delta in NED (Exp(psi) R_nc).
+    cov_att = R @ cov[3:, 3:] @ R.T
+    cov_pose = np.empty((6, 6))
+    cov_pose[:3, :3] = cov[:3, :3]
+    cov_pose[:3, 3:] = cov[:3, 3:] @ R.T
+    cov_pose[3:, :3] = cov_pose[:3, 3:].T
+    cov_pose[3:, 3:] = cov_att
+    cov_pose = 0.5 * (cov_pose + cov_pose.T)
+    return _log(R_img @ R_nc0.T), 0.5 * (cov_att + cov_att.T), c.copy(), cov_pose

@@ -89,6 +89,39 @@ def test_image_only_attitude_does_not_lean_on_the_prior(camera, mount):
     assert 0.0 < np.degrees(sigma) < 0.05
 
 
+
+def test_image_only_pose_is_the_solve_without_the_prior(camera, mount):
+    """The image-only pose (centre and attitude, with their joint covariance) of a MAP solve
+    whose prior is 0.4 deg off in tilt equals the solve without any prior: the same centre to
+    centimetres where the MAP centre is pulled by metres, and that solve's covariance, whose
+    centre-attitude cross terms are not small (a tilt and a shift move the image alike)."""
+    from testbench.core.rotations import quat_to_dcm, rotvec_to_quat
+
+    rng = np.random.default_rng(3)
+    R_nb = euler_to_dcm(np.radians([1.0, -2.0, 70.0]))
+    c, R_nc = camera_pose_ned(np.array([10.0, -20.0, -800.0]), R_nb, mount)
+    X = np.c_[rng.uniform(-700, 700, (40, 2)) + c[:2], np.zeros(40)]
+    xc = (X - c) @ R_nc
+    uv = (camera.K @ xc.T)[:2].T / xc[:, 2:3] + rng.normal(0.0, 0.5, (40, 2))
+    R0 = quat_to_dcm(rotvec_to_quat(np.radians([0.4, 0.0, 0.0]))) @ R_nc  # tilted about north
+    P = np.diag(np.radians([0.05, 0.05, 0.05]) ** 2)
+    sol = solve_camera_pose(X, uv, camera.K, c, R0, 1.0, P, iterations=20)
+    free = solve_camera_pose(X, uv, camera.K, c, R0, 1.0, None, iterations=20)
+    assert np.linalg.norm(sol.centre_ned_m - free.centre_ned_m) > 1.0  # the MAP leans on the prior
+    assert np.linalg.norm(sol.centre_img_ned_m - free.centre_ned_m) < 0.05
+    assert np.linalg.norm(free.centre_img_ned_m - free.centre_ned_m) == 0.0
+    cov = sol.cov_pose_img
+    np.testing.assert_allclose(cov[3:, 3:], sol.cov_att_img_rad2)
+    np.testing.assert_allclose(free.cov_pose_img[:3, :3], free.cov_centre_m2)
+    np.testing.assert_allclose(free.cov_pose_img[3:, 3:], free.cov_att_rad2)
+    # Linearised at the MAP solution instead of the free one (0.4 deg apart): the variances
+    # agree to 2 %, the correlations to 0.05.
+    sd, sd_free = np.sqrt(np.diag(cov)), np.sqrt(np.diag(free.cov_pose_img))
+    np.testing.assert_allclose(sd, sd_free, rtol=0.02)
+    assert np.abs((cov - free.cov_pose_img) / np.outer(sd, sd)).max() < 0.05
+    assert np.abs(cov[:3, 3:] / np.outer(sd[:3], sd[3:])).max() > 0.5
+
+
 def _pipeline(seasons, camera, mount, **kw):
     return IsmnPipeline(camera, mount, RasterMapSource(seasons[1]), None, NccMatcher(), IsmnParams(**kw))
 
@@ -222,3 +255,43 @@ def test_pipeline_waits_for_the_heading(seasons, camera, mount, make_estimate):
     assert fix is None and "heading" in diag.reason and diag.attempted is False
     fix, diag = pipe.process(frame, 0.5, make_estimate(truth, [0.0, 0.0, 0.0], sigma_att_deg=0.05))
     assert fix is not None and diag.attempted, diag.reason
+
+
+def test_image_pose_shows_the_boresight_and_a_seed_with_it_mends_the_fix(seasons, camera, mount, make_estimate):
+    """A camera whose true mounting is turned by b = (0.5, -0.4, 0.3) deg (body axes) from its
+    calibration, the estimate at the true pose: the image-only pose (pose_from_image), read
+    through the calibrated mounting, is the body attitude turned by C b (measurements.
+    image_pose's model), to a few hundredths of a degree; its position is the truth. The MAP fix
+    of the calibrated seed errs by metres (its prior leans on the wrong camera attitude); seeded
+    with the boresight as the navigator would estimate it (NavEstimate.camera_boresight_b_rad),
+    it does not (7.1 m against 0.03 m)."""
+    import dataclasses
+
+    from testbench.core.camera_geometry import CameraMount
+    from testbench.core.rotations import dcm_to_quat, quat_to_rotvec
+
+    truth = np.array([60.0, 40.0, -800.0])
+    rpy = [2.0, -1.5, 35.0]
+    R_nb = euler_to_dcm(np.radians(rpy))
+    b = np.radians([0.5, -0.4, 0.3])
+    true_mount = CameraMount(euler_to_dcm(b) @ mount.R_bc, mount.lever_arm_b_m)
+    frame = render_plane_frame(seasons[0], camera, truth, R_nb, true_mount)
+    est = make_estimate(truth, rpy, sigma_pos_m=5.0, sigma_att_deg=0.05)
+    pipe = _pipeline(seasons, camera, mount, pose_from_image=True)
+    fix, diag = pipe.process(frame, 1.0, est)
+    assert fix is not None, diag.reason
+    seen = quat_to_rotvec(dcm_to_quat(fix.image_R_nb @ R_nb.T))
+    expected = R_nb @ b  # the boresight turned into NED
+    assert np.degrees(np.abs(seen - expected)).max() < 0.02, np.degrees(seen - expected)
+    assert np.linalg.norm(fix.image_pos_ned_m - truth) < 1.0
+    cov = fix.image_pose_cov
+    assert cov.shape == (6, 6) and np.all(np.linalg.eigvalsh(cov) > 0)
+    assert np.degrees(np.sqrt(cov[3, 3])) >= pipe.p.attitude_floor_deg
+    map_err = np.hypot(*(fix.pos_ned_m - truth)[:2])
+    seeded = dataclasses.replace(est, camera_boresight_b_rad=b, cov_camera_boresight_rad2=np.eye(3) * np.radians(0.01) ** 2)
+    fix2, diag2 = pipe.process(frame, 1.0, seeded)
+    assert fix2 is not None, diag2.reason
+    seeded_err = np.hypot(*(fix2.pos_ned_m - truth)[:2])
+    assert map_err > 4.0 and seeded_err < 0.5, (map_err, seeded_err)  # measured 7.1 and 0.03 m
+    # The image pose does not depend on the seed's mounting (read through the calibrated one).
+    assert np.degrees(np.abs(quat_to_rotvec(dcm_to_quat(fix2.image_R_nb @ fix.image_R_nb.T)))).max() < 0.02
