@@ -60,3 +60,16 @@ def test_check_refuses_a_start_inside_an_obstacle(tmp_path):
                 "world.obstacles=[{name: mast, min_ned_m: [-5, -5, -200], max_ned_m: [5, 5, 0]}]")
     assert proc.returncode == 2, proc.stdout + proc.stderr
     assert "inside obstacle 'mast'" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_check_refuses_boresight_states_without_an_image_pose():
+    """camera_boresight on the navigator needs a scene matcher whose fixes carry the image-only
+    pose: without pipeline.pose_from_image the check names both; with it the scenario builds."""
+    scenario = str(SCENARIOS / "paper_ismn_800m.yaml")
+    states = "vehicles.uav0.navigation.params.camera_boresight={sigma_deg: 0.5}"
+    proc = _run(scenario, "--check", "--set", states)
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert "camera_boresight" in proc.stderr and "pose_from_image" in proc.stderr and "Traceback" not in proc.stderr
+    ok = _run(scenario, "--check", "--set", states, "--set", "vehicles.uav0.aids.ismn.pipeline.pose_from_image=true",
+              "--set", "vehicles.uav0.sensors.down.mount_error_sigma_deg=0.5")
+    assert ok.returncode == 0, ok.stderr

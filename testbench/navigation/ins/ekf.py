@@ -63,9 +63,10 @@ def chi2_threshold(probability: float, dof: int) -> float:
 class ErrorStateEKF(Reacquisition):
     """Error-state EKF of one vehicle. Shapes: P (n, n), n = self.n: N_STATES (25) with
     wind_states, else N_NO_WIND (23), plus 3 with the appearance states, 1 with the magnetic
-    heading bias and 2 with the optical flow's slow error; error vector layout in error_model
-    (the appearance states, self.i_app, then the magnetic bias, self.i_mag, then the flow's
-    error, self.i_flow, come last).
+    heading bias, 2 with the optical flow's slow error and 3 with a camera's boresight error;
+    error vector layout in error_model (the appearance states, self.i_app, then the magnetic
+    bias, self.i_mag, then the flow's error, self.i_flow, then the boresight, self.i_cam, come
+    last).
 
     noise: IMU noise model; gate_probability: chi-square gate (e.g. 0.999; 1.0 disables);
     cov_interval_s: covariance propagation interval (0: every IMU sample);
@@ -106,6 +107,11 @@ class ErrorStateEKF(Reacquisition):
     the flow aiding): a flow sensor's reading of sub-pixel shifts errs by an amount that follows
     the ground in its view, the same while the view holds the same ground (consecutive frames
     share 99 % of it at 5 m/s), which taken as white noise the filter averages down.
+    camera_boresight_sigma_rad: 1-sigma per body axis of the scene-matching camera's boresight
+    error b_cam (its true mounting R_bc_true = Exp(b_cam) R_bc, body axes, rad; 0: no such
+    states): three random constants after the others (self.i_cam), learnt from the image's
+    pose against the INS attitude (measurements.image_pose). A camera mount known to 0.1 deg
+    moves the fixes of a camera 800 m up by 1.4 m, the same way for a whole leg.
     gyro_scale_sigma, scale_corr_angle_rad: the gyros' scale-factor and cross-axis error (1 sigma,
     rad per rad turned) is a constant error in each rate the IMU reads, which the error state
     does not carry: it enters P as attitude noise per angle turned, s^2 Theta |dtheta| per axis,
@@ -130,7 +136,7 @@ class ErrorStateEKF(Reacquisition):
                  appearance_sigma_m: float | np.ndarray = 0.0, mag_bias_sigma_rad: float = 0.0,
                  mag_bias_correlation_m: float = math.inf, flow_bias_sigma_rps: float = 0.0,
                  flow_bias_tau_s: float = math.inf, flow_bias_correlation_rad: float = math.inf,
-                 vehicle_id: str | None = None):
+                 camera_boresight_sigma_rad: float = 0.0, vehicle_id: str | None = None):
         if bias_model not in ("random_walk", "gauss_markov"):
             raise ValueError(f"bias_model {bias_model!r}: expected 'random_walk' or 'gauss_markov'")
         self.noise = noise
@@ -151,7 +157,10 @@ class ErrorStateEKF(Reacquisition):
         self.flow_bias_correlation_rad = float(flow_bias_correlation_rad)
         self.i_flow: slice | None = slice(n_mag, n_mag + 2) if self._flow_var > 0.0 else None
         """The optical flow's slowly varying error's two states (camera x, y, rad/s), or None."""
-        self.n = n_mag + (2 if self.i_flow is not None else 0)
+        n_flow = n_mag + (2 if self.i_flow is not None else 0)
+        self.i_cam: slice | None = slice(n_flow, n_flow + 3) if camera_boresight_sigma_rad > 0.0 else None
+        """The scene-matching camera's boresight error's three states (body axes, rad), or None."""
+        self.n = n_flow + (3 if self.i_cam is not None else 0)
         """Number of error states (the length of dx, the size of P)."""
         # Correlation times of the IMU bias ERRORS in F (inf: random walk) and of the nominal biases.
         gm = bias_model == "gauss_markov"
@@ -178,6 +187,8 @@ class ErrorStateEKF(Reacquisition):
             self._qc = np.concatenate([self._qc, [0.0]])  # driven by distance, in flush()
         if self.i_flow is not None:
             self._qc = np.concatenate([self._qc, [0.0, 0.0]])  # a Gauss-Markov step in flush()
+        if self.i_cam is not None:
+            self._qc = np.concatenate([self._qc, [0.0, 0.0, 0.0]])  # a constant: the mount does not move
         self.ins: StrapdownINS | None = None
         self.b_g = np.zeros(3)
         self.b_a = np.zeros(3)
@@ -188,6 +199,7 @@ class ErrorStateEKF(Reacquisition):
         self.b_mag_rad = 0.0
         self.drag_scale = 0.0
         self.b_flow_rps = np.zeros(2)
+        self.b_cam_rad = np.zeros(3)
         self.flow_view_rate_rps = 0.0  # |translational flow| of the last flow sample (rad/s), held until the next
         self.wind_ne_mps = np.zeros(2)
         self.P = np.zeros((self.n, self.n))
@@ -211,6 +223,7 @@ class ErrorStateEKF(Reacquisition):
         self.b_mag_rad = 0.0
         self.drag_scale = 0.0
         self.b_flow_rps = np.zeros(2)
+        self.b_cam_rad = np.zeros(3)
         self.wind_ne_mps = np.zeros(2)
         self.P = np.array(P0, float)
         self._acc_T = 0.0
@@ -399,6 +412,8 @@ class ErrorStateEKF(Reacquisition):
             self.b_mag_rad += float(dx[self.i_mag])
         if self.i_flow is not None:
             self.b_flow_rps = self.b_flow_rps + dx[self.i_flow]
+        if self.i_cam is not None:
+            self.b_cam_rad = self.b_cam_rad + dx[self.i_cam]
 
     # ------------------------------------------------------------------ guard
     def _check(self, where: str) -> None:

@@ -29,8 +29,10 @@ Error convention (truth = nominal (+) error):
   fix_appearance_sigma_m); Gauss-Markov like dfx. Not in N_STATES: a filter carries it only
   when asked, and its rows of F and Q are set by the filter.
 - dbm (1, optional, after dap: ErrorStateEKF.i_mag): error of the magnetic heading's bias
-  (rad); dbf (2, optional, last: ErrorStateEKF.i_flow): error of the optical flow's slowly
-  varying error (rad/s, the flow camera's x and y). Likewise carried only when asked.
+  (rad); dbf (2, optional, after dbm: ErrorStateEKF.i_flow): error of the optical flow's slowly
+  varying error (rad/s, the flow camera's x and y); dbc (3, optional, last: ErrorStateEKF.
+  i_cam): error of the scene-matching camera's boresight b_cam (body axes, rad: R_bc_true =
+  Exp(b_cam) R_bc), a constant. Likewise carried only when asked.
 The nominal biases are subtracted from the raw IMU data: omega = omega_meas - b_g.
 
 Continuous error dynamics (phi-angle model, Titterton & Weston ch. 12 / Groves ch. 14, in

@@ -13,7 +13,7 @@ import numpy as np
 
 from testbench.core import geodesy
 from testbench.core.interfaces import GeodeticOrigin
-from testbench.core.rotations import dcm_to_euler, heading_sensitivity, skew, wrap_pi
+from testbench.core.rotations import dcm_to_euler, dcm_to_quat, heading_sensitivity, quat_to_rotvec, skew, wrap_pi
 from testbench.navigation.ins.error_model import IA, IBA, IBB, IDS, IFX, IGN, IP, IV, IW
 
 
@@ -82,7 +82,12 @@ def position_ned(ekf, pos_ned_m, cov_ned_m2, origin: GeodeticOrigin, att_sensiti
 
     att_sensitivity_m_per_rad (3, 3), M: the fix leaned on the filter's own attitude (a pose
     solve with the INS attitude as prior), so its error holds -M phi; then H_phi = -M, and
-    cov_ned_m2 must be the fix's covariance given the attitude (PositionFix).
+    cov_ned_m2 must be the fix's covariance given the attitude (PositionFix). With the camera's
+    boresight states (ekf.i_cam) the solve was seeded with the mounting corrected by the
+    estimate b_cam_hat (NavEstimate.camera_boresight_b_rad), so its prior's camera attitude errs
+    by psi = Log(Exp(phi) C Exp(b_cam) Exp(-b_cam_hat) C^T) = phi + C J db to first order (db =
+    b_cam - b_cam_hat, J = I + [b_cam_hat x] / 2 the left Jacobian of Exp): the fix holds -M psi,
+    H_phi = -M, H_b = -M C J.
 
     appearance_gain g (dimensionless): with the filter's appearance states (ekf.i_app), the fix
     also holds g b_app, the appearance error scaled by how strongly this fix shows it
@@ -100,11 +105,46 @@ def position_ned(ekf, pos_ned_m, cov_ned_m2, origin: GeodeticOrigin, att_sensiti
         y = y - appearance_gain * ekf.b_app
         H[:, ekf.i_app] = appearance_gain * np.eye(3)
     if att_sensitivity_m_per_rad is not None:
-        H[:, IA] = -np.asarray(att_sensitivity_m_per_rad, float)
+        M = np.asarray(att_sensitivity_m_per_rad, float)
+        H[:, IA] = -M
+        if ekf.i_cam is not None:
+            H[:, ekf.i_cam] = -M @ ekf.C_nb @ (np.eye(3) + 0.5 * skew(ekf.b_cam_rad))
     if vel_lag_s is not None:
         lag = np.asarray(vel_lag_s, float)
         H[:, IV] = -(lag @ H[:, IP] if lag.ndim == 2 else float(lag) * H[:, IP])
     return y, H, np.asarray(cov_ned_m2, float)
+
+
+def image_pose(ekf, pos_ned_m, R_nb_img, cov_pose, origin: GeodeticOrigin, appearance_gain: float = 0.0):
+    """A camera's pose the image alone gives (PositionFix.image_*), as one measurement of
+    position and attitude: pos_ned_m (3,) NED m at the origin and R_nb_img (3, 3) body -> NED,
+    both through the camera's calibrated mounting, with their joint covariance cov_pose (6, 6)
+    [position NED m, attitude NED rad] (the white part: the shared fix errors are states).
+
+    Position rows as position_ned without an attitude coupling (the image alone does not lean
+    on the filter). Attitude rows: the camera really sits at Exp(b_cam) R_bc (ekf.i_cam, body
+    axes), so the body attitude read through the calibrated R_bc is R_nb_true Exp(b_cam) =
+    Exp(C_true b_cam) Exp(phi) C, C_true b_cam = C b_cam - [C b_cam x] phi: y = Log(R_nb_img
+    C^T) - C b_cam_hat, H_b = C, H_phi = I + [a x] / 2 - [C b_cam_hat x] with a = Log(R_nb_img C^T)
+    (the inverse right Jacobian of Log to first order: a boresight of a degree is 0.017 rad, whose
+    half is not small against the 1e-4 rad the image resolves). Without the boresight states the
+    attitude rows are those of an attitude measurement alone (H_phi = I + [a x] / 2)."""
+    y_p, H_p, _ = position_ned(ekf, pos_ned_m, np.eye(3), origin, appearance_gain=appearance_gain)
+    C = ekf.C_nb
+    y_a = _log_rotation(np.asarray(R_nb_img, float) @ C.T)
+    H_a = np.zeros((3, ekf.n))
+    H_a[:, IA] = np.eye(3) + 0.5 * skew(y_a)
+    if ekf.i_cam is not None:
+        b_n = C @ ekf.b_cam_rad
+        y_a = y_a - b_n
+        H_a[:, IA] -= skew(b_n)
+        H_a[:, ekf.i_cam] = C
+    return np.concatenate([y_p, y_a]), np.vstack([H_p, H_a]), np.asarray(cov_pose, float)
+
+
+def _log_rotation(R: np.ndarray) -> np.ndarray:
+    """The rotation vector (3,) rad of a rotation matrix R (3, 3) (R = Exp(v))."""
+    return quat_to_rotvec(dcm_to_quat(R))
 
 
 def baro_altitude(ekf, altitude_m: float, sigma_m: float):

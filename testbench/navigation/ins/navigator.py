@@ -108,6 +108,8 @@ class InsEkfNavigator(Navigator):
             flow_bias_tau_s=math.inf if params.optical_flow is None else params.optical_flow.bias_tau_s,
             flow_bias_correlation_rad=(math.inf if params.optical_flow is None
                                        else params.optical_flow.bias_correlation_rad),
+            camera_boresight_sigma_rad=(0.0 if params.camera_boresight is None
+                                        else params.camera_boresight.sigma_deg * DEG_TO_RAD),
         )
         self._mag_model: OnboardMagneticModel | None = None
         self._airspeed: float | None = None
@@ -120,6 +122,9 @@ class InsEkfNavigator(Navigator):
         self._gnss_guard = None if params.gnss_monitor is None else GnssSpoofGuard(params.gnss_monitor)
         self.gnss_monitor = None if self._gnss_guard is None else self._gnss_guard.monitor
         self.estimates_wind = self.ekf.wind_states
+        self.estimates_camera_boresight = self.ekf.i_cam is not None
+        self.boresight_camera: str | None = None
+        """The camera whose boresight the states are (check_aids: the ismn aid's), for scoring."""
         self.air = AirRelativeAiding(params, aircraft, ctx.vehicle_id)
         """Rotor-drag and airspeed aiding (air_aiding.py)."""
         self.flow = None if params.optical_flow is None else FlowVelocityAiding(params.optical_flow)
@@ -162,7 +167,7 @@ class InsEkfNavigator(Navigator):
     def initial_covariance(self) -> np.ndarray:
         """P0 (ekf.n, ekf.n) from Params.initial_sigma (GNSS and fix error states, the drag scale,
         the magnetic bias and the flow's slow error: their steady state; the wind, with wind
-        states: their aiding's wind_sigma_mps)."""
+        states: their aiding's wind_sigma_mps; the camera's boresight: its sigma_deg)."""
         s = self.params.initial_sigma
         d = np.empty(self.ekf.n)
         d[IP] = s.pos_m
@@ -186,6 +191,8 @@ class InsEkfNavigator(Navigator):
             d[self.ekf.i_mag] = self.params.mag_bias.sigma_deg * DEG_TO_RAD
         if self.ekf.i_flow is not None:
             d[self.ekf.i_flow] = self.params.optical_flow.bias_sigma_rps
+        if self.ekf.i_cam is not None:
+            d[self.ekf.i_cam] = self.params.camera_boresight.sigma_deg * DEG_TO_RAD
         return np.diag(d**2)
 
     def appearance_gain(self, quality: float) -> float:
@@ -219,26 +226,17 @@ class InsEkfNavigator(Navigator):
         if isinstance(measurement, PositionFix):
             if not p.use_position_fix:
                 return None
+            if ekf.i_cam is not None and measurement.image_pose_cov is not None:
+                return self._correct_image_pose(measurement, t)
             # A fix that declares how it leaned on our attitude is fused with that coupling
             # (H_phi = -M) and its covariance given the attitude; otherwise as independent.
             M = measurement.att_sensitivity_m_per_rad if p.fix_attitude_coupling else None
             base = measurement.cov_ned_m2 if M is None else measurement.cov_given_att_ned_m2
-            cov = np.asarray(base, float) * p.meas_sigma.position_fix_scale**2
-            # The shared part is in the b_fix states; what is left is white. A fix claiming
-            # less than the shared error keeps 1 % of its smallest eigenvalue as white noise
-            # (never an exact measurement).
-            lam_min = float(np.linalg.eigvalsh(0.5 * (cov + cov.T)).min())
-            # (A diagonal below 0.99 lam_min I keeps the remainder positive definite.)
-            white = cov - np.diag(np.minimum(self.fix_error_sigma_ned_m**2, 0.99 * lam_min))
+            white = self._white_fix_cov(base)
             y, H, R = meas.position_ned(ekf, measurement.pos_ned_m, white, self.ctx.origin, M,
                                         appearance_gain=self.appearance_gain(measurement.quality),
                                         vel_lag_s=measurement.vel_lag_s)
-            kind = f"position_fix:{measurement.source}"
-            # Short of fix_reset_min_refusals refusals in a row the reset is held off.
-            may_reset = self._fix_refusals + 1 >= p.fix_reset_min_refusals
-            info, self._last_fix_ok_t_s = self._update_or_reset(
-                kind, t, y, H, R, self._last_fix_ok_t_s, self._last_gnss_ok_t_s, p.fix_reset_after_s if may_reset else 0.0)
-            self._fix_refusals = 0 if info.accepted else self._fix_refusals + 1
+            info = self._fuse_fix(f"position_fix:{measurement.source}", t, y, H, R)
             if p.use_fix_heading and measurement.heading_rad is not None and info is not None and info.accepted:
                 # The image-only heading of the same solve: nearly uncorrelated with its centre in
                 # a nadir view (a rotation about the vertical through the centre moves no point
@@ -301,9 +299,12 @@ class InsEkfNavigator(Navigator):
             airspeed_mps=self._airspeed,
             wind_ne_mps=np.array(ekf.wind_ne_mps, float) if ekf.wind_states else None,
             cov_wind_ne_m2s2=P[IW, IW].copy() if ekf.wind_states else None,
+            camera_boresight_b_rad=None if ekf.i_cam is None else ekf.b_cam_rad.copy(),
+            cov_camera_boresight_rad2=None if ekf.i_cam is None else P[ekf.i_cam, ekf.i_cam].copy(),
         )
         for a in (est.pos_ned_m, est.vel_ned_mps, est.q_nb_wxyz, est.rpy_rad, est.omega_b_rps,
-                  est.cov_pos_ned_m2, est.cov_vel_ned_m2s2, est.cov_att_rad2, est.wind_ne_mps, est.cov_wind_ne_m2s2):
+                  est.cov_pos_ned_m2, est.cov_vel_ned_m2s2, est.cov_att_rad2, est.wind_ne_mps, est.cov_wind_ne_m2s2,
+                  est.camera_boresight_b_rad, est.cov_camera_boresight_rad2):
             if a is not None:
                 a.flags.writeable = False
         self._estimate = est
@@ -326,6 +327,19 @@ class InsEkfNavigator(Navigator):
                              f"sensor with beam_half_angle_deg <= {self.params.optical_flow.max_beam_half_angle_deg:g} "
                              "(a pencil beam along body z)")
 
+    def check_aids(self, aids: list, where: str) -> None:
+        """Raise InputError when the boresight states (Params.camera_boresight) have no scene
+        matcher to learn them from: exactly one aid whose fixes carry the image-only pose."""
+        if self.ekf.i_cam is None:
+            return
+        offering = [a for a in aids if getattr(a, "offers_image_pose", False)]
+        if len(offering) != 1:
+            raise InputError(
+                f"{where}.params.camera_boresight: the boresight states are one camera's and are learnt from its fixes' "
+                f"image-only pose: the vehicle needs exactly one ismn aid with pipeline.pose_from_image: true "
+                f"(has {len(offering)})")
+        self.boresight_camera = offering[0].params.camera
+
     # ------------------------------------------------------------------ extras
     def covariance(self) -> np.ndarray:
         """Full error covariance (ekf.n, ekf.n) in the filter's own frames (error_model layout)."""
@@ -334,6 +348,51 @@ class InsEkfNavigator(Navigator):
     def error_state(self, truth: TruthState, gyro_bias_rps=None, accel_bias_mps2=None) -> np.ndarray:
         """True error (15,) of the current estimate (truth (-) estimate, error_model layout)."""
         return error_state(self.ekf, truth, gyro_bias_rps, accel_bias_mps2)
+
+    def _white_fix_cov(self, cov_ned_m2, bound_ned_m2=None) -> np.ndarray:
+        """(3, 3) the white part of a position fix's covariance (NED m^2), scaled by
+        meas_sigma.position_fix_scale: the shared part is in the b_fix states. A fix claiming
+        less than the shared error keeps 1 % of the smallest eigenvalue of bound_ned_m2 (its
+        covariance given what else the same measurement holds; default the covariance itself)
+        as white noise (never an exact measurement)."""
+        scale2 = self.params.meas_sigma.position_fix_scale**2
+        cov = np.asarray(cov_ned_m2, float) * scale2
+        bound = cov if bound_ned_m2 is None else np.asarray(bound_ned_m2, float) * scale2
+        lam_min = float(np.linalg.eigvalsh(0.5 * (bound + bound.T)).min())
+        # (A diagonal below 0.99 lam_min I keeps the remainder positive definite.)
+        return cov - np.diag(np.minimum(self.fix_error_sigma_ned_m**2, 0.99 * lam_min))
+
+    def _fuse_fix(self, kind: str, t: float, y, H, R, reset=None) -> CorrectionInfo:
+        """A position fix's measurement through the gate, or the position reset to it after
+        fix_reset_after_s of refusals (Params.fix_reset_*)."""
+        p = self.params
+        # Short of fix_reset_min_refusals refusals in a row the reset is held off.
+        may_reset = self._fix_refusals + 1 >= p.fix_reset_min_refusals
+        info, self._last_fix_ok_t_s = self._update_or_reset(
+            kind, t, y, H, R, self._last_fix_ok_t_s, self._last_gnss_ok_t_s, p.fix_reset_after_s if may_reset else 0.0,
+            reset)
+        self._fix_refusals = 0 if info.accepted else self._fix_refusals + 1
+        return info
+
+    def _correct_image_pose(self, fix: PositionFix, t: float) -> CorrectionInfo:
+        """A fix's image-only pose (position and attitude, one 6-dof measurement) with the
+        camera's boresight states (Params.camera_boresight; measurements.image_pose); its
+        position block's white part as a fix's. A reset re-acquires the position alone."""
+        cov = np.array(fix.image_pose_cov, float)
+        scale = self.params.meas_sigma.position_fix_scale
+        # The position's covariance given the attitude bounds what may go to b_fix: taking no
+        # more than that keeps the 6 x 6 positive definite.
+        given_att = cov[:3, :3] - cov[:3, 3:] @ np.linalg.solve(cov[3:, 3:], cov[3:, :3])
+        cov[:3, 3:] *= scale
+        cov[3:, :3] *= scale
+        cov[:3, :3] = self._white_fix_cov(cov[:3, :3], given_att)
+        y, H, R = meas.image_pose(self.ekf, fix.image_pos_ned_m, fix.image_R_nb, cov, self.ctx.origin,
+                                  appearance_gain=self.appearance_gain(fix.quality))
+
+        def reset_position(kind, t_s, y, H, R, elapsed_s):
+            return self.ekf.reset_position(kind, t_s, y[:3], H[:3], R[:3, :3], elapsed_s)
+
+        return self._fuse_fix(f"image_pose:{fix.source}", t, y, H, R, reset_position)
 
     def _correct_mag(self, m: MagSample, t: float) -> CorrectionInfo:
         ekf, p = self.ekf, self.params

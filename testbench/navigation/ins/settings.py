@@ -241,6 +241,22 @@ class MagBias(ParamsModel):
     correlation_m: float = pydantic.Field(2000.0, gt=0.0)
 
 
+class CameraBoresight(ParamsModel):
+    """The scene-matching camera's boresight error as three filter states (ErrorStateEKF.i_cam,
+    body axes): the camera's true mounting differs from its calibration by a fixed small
+    rotation (a camera sensor's mount_error_deg), which turns every fix's view of the ground
+    alike. The filter fuses each fix's image-only pose (ismn pose_from_image: position and
+    attitude with their joint covariance) instead of its MAP position, and the image's
+    attitude against the INS attitude shows the boresight: while GNSS holds the position and
+    the manoeuvres the heading, the tilt part settles within a few fixes; the yaw part, which
+    only the heading separates from the INS's own yaw error, more slowly.
+
+    sigma_deg: 1-sigma per body axis of the boresight before any fix (a mount known from the
+    drawing, not calibrated: 0.5-1 deg; after a calibration flight: 0.02-0.05 deg)."""
+
+    sigma_deg: float = pydantic.Field(0.5, gt=0.0, le=10.0)
+
+
 class MeasurementSigmas(ParamsModel):
     """Measurement noise overrides; None uses the message's own figure or the default."""
 
@@ -346,6 +362,11 @@ class InsEkfParams(ParamsModel):
     """Cap on g: a fix of very low quality is mostly gated out, and one that passes must not
     pin the appearance states with a gain of 10."""
     mag_bias: MagBias | None = None
+    camera_boresight: CameraBoresight | None = None
+    """The scene-matching camera's boresight error as filter states (see CameraBoresight);
+    None: the camera's calibrated mounting is taken as exact. Needs fixes that carry the
+    image-only pose (the ismn aid's pipeline.pose_from_image); fixes without it are fused
+    as before, their attitude coupling extended by the boresight."""
     """The magnetic heading's bias as a filter state (see MagBias); None: none, every
     magnetometer sample's error taken as white."""
     fix_reset_after_s: float = pydantic.Field(5.0, ge=0.0)

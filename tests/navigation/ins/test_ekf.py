@@ -23,7 +23,7 @@ from testbench.core.messages import (
     UwbRange,
 )
 from testbench.core.registry import build
-from testbench.core.rotations import quat_to_dcm
+from testbench.core.rotations import quat_to_dcm, rotvec_to_quat
 from testbench.navigation.ins.consistency import average_nees_bounds, nees_from_truth
 from testbench.navigation.ins.error_model import N_CORE, N_NO_WIND, inject_nav, nav_error
 from testbench.navigation.ins.magnetic import OnboardMagneticModel
@@ -715,3 +715,41 @@ def test_appearance_states_come_after_the_wind():
     np.testing.assert_allclose(ekf.wind_ne_mps, [1.0, 2.0])
     np.testing.assert_allclose(ekf.b_app, [0.1, 0.2, 0.3])
     assert nav.initial_covariance()[ekf.i_app, ekf.i_app] == pytest.approx(0.09 * np.eye(3))
+
+
+def test_the_camera_boresight_states_learn_the_tilt_of_a_misaligned_camera():
+    """A level, static vehicle under GNSS whose camera sits turned by b = (0.4, -0.3, 0.2) deg
+    from its calibration: every fix's image-only pose reads the body attitude turned by C b.
+    With the boresight states (camera_boresight) the filter puts the roll and pitch of it into
+    b_cam, not into its own tilt, which gravity pins; the yaw part it cannot tell from its own
+    heading error without a heading reference, and it says so (its sigma stays wide). A fix
+    without the image pose is fused as before (position_fix, 3 dof)."""
+    b = np.radians([0.4, -0.3, 0.2])
+    true_ned = geodesy.geodetic_to_ned(LAT0, LON0, H0, ORIGIN.lat_rad, ORIGIN.lon_rad, ORIGIN.alt_m)
+    R_img = quat_to_dcm(rotvec_to_quat(b))  # level, heading north: C = I, so C b = b
+    pose_cov = np.diag([1.0, 1.0, 1.0] + [np.radians(0.02) ** 2] * 3)
+    q = np.array([1.0, 0, 0, 0])
+    w, f = static_imu(LAT0, H0, q)
+    nav = _navigator(camera_boresight={"sigma_deg": 0.5})
+    assert nav.ekf.i_cam is not None and nav.ekf.n == N_NO_WIND + 3
+    nav.initialize(0.0, _estimate_from(LAT0, LON0, H0, np.zeros(3), q))
+    kinds = set()
+    for k in range(1, 601):
+        t = k * 0.05
+        nav.predict(ImuSample(t, w, f))
+        if k % 20 == 0:
+            nav.correct(GnssFix(t, LAT0, LON0, H0, np.zeros(3), np.full(3, 2.0), np.full(3, 0.1)))
+        if k % 20 == 10 and t > 5.0:
+            info = nav.correct(PositionFix(t, true_ned, np.eye(3), 0.9, image_pos_ned_m=true_ned, image_R_nb=R_img,
+                                           image_pose_cov=pose_cov))
+            assert info.kind == "image_pose:ismn" and info.innovation.shape == (6,) and info.accepted
+            kinds.add(info.kind)
+    est = nav.estimate()
+    sd = np.sqrt(np.diag(est.cov_camera_boresight_rad2))
+    assert np.degrees(np.abs(est.camera_boresight_b_rad[:2] - b[:2])).max() < 0.02
+    assert np.degrees(sd[:2]).max() < 0.03 and np.degrees(sd[2]) > 0.3
+    assert np.degrees(np.abs(est.rpy_rad[:2])).max() < 0.02  # the tilt stayed where gravity holds it
+    # The camera's heading, the filter's yaw plus the boresight's, is what the images said.
+    assert abs(np.degrees(est.rpy_rad[2] + est.camera_boresight_b_rad[2] - b[2])) < 0.01
+    info = nav.correct(PositionFix(31.0, true_ned, np.eye(3), 0.9))
+    assert info.kind == "position_fix:ismn" and info.innovation.shape == (3,)

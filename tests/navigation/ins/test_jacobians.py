@@ -14,7 +14,7 @@ from testbench.core.interfaces import GeodeticOrigin
 from testbench.core.rotations import euler_to_quat, quat_multiply, quat_to_dcm, rotvec_to_quat
 from testbench.navigation.ins import measurements as meas
 from testbench.navigation.ins.ekf import ErrorStateEKF
-from testbench.navigation.ins.error_model import N_CORE, N_STATES, continuous_F, inject_nav, nav_error
+from testbench.navigation.ins.error_model import IA, N_CORE, N_STATES, continuous_F, inject_nav, nav_error
 from testbench.navigation.ins.imu_noise import imu_noise_from_datasheet
 
 TAU_G, TAU_A = 300.0, 200.0
@@ -225,3 +225,61 @@ def test_reset_jacobian_matches_finite_differences():
         d[j] = 1e-6
         G_num[:, j] = (phi_plus(dphi + d) - phi_plus(dphi - d)) / 2e-6
     np.testing.assert_allclose(G, G_num, atol=1e-3)  # first order in dphi (|dphi|^2 ~ 4e-3)
+
+
+def _boresight_ekf():
+    noise = imu_noise_from_datasheet(0.15, 7.0, 0.02, 14.0)
+    ekf = ErrorStateEKF(noise, wind_states=True, camera_boresight_sigma_rad=0.01)
+    lat, lon, h, v, q = X_HAT
+    ekf.initialize(0.0, lat, lon, h, v, q, np.eye(ekf.n))
+    ekf.b_cam_rad = np.array([0.004, -0.006, 0.003])
+    assert ekf.n == N_STATES + 3 and ekf.i_cam == slice(N_STATES, N_STATES + 3)
+    return ekf
+
+
+def test_image_pose_H_with_the_camera_boresight_states_matches_finite_differences():
+    """The image-only pose (position and attitude rows) with the boresight states (three more
+    columns, last) at a non-zero estimate; the image's attitude the estimate's, so that the
+    residual's own second-order terms vanish."""
+    ekf = _boresight_ekf()
+    C = quat_to_dcm(X_HAT[4])
+    R_img = quat_to_dcm(rotvec_to_quat(C @ ekf.b_cam_rad)) @ C
+
+    def model(e):
+        return meas.image_pose(e, [3000.0, -2000.0, -900.0], R_img, np.eye(6), ORIGIN)
+
+    H = model(ekf)[1]
+    assert np.abs(H[3:, ekf.i_cam]).max() > 0.5
+    H_num = _numeric_H(ekf, model, np.r_[STEPS, 1e-5, 1e-5, 1e-5])
+    np.testing.assert_allclose(H, H_num, rtol=1e-5, atol=3e-6 * np.abs(H).max())
+
+
+def test_coupled_fix_H_with_the_camera_boresight_states_follows_the_seeded_solve():
+    """A fix that leaned on the prior (error -M psi, psi the seed's camera attitude error) from
+    a solve seeded with the mounting corrected by the boresight estimate: psi = Log(R_nc_true
+    R_nc_seed^T), R_nc_true = Exp(phi) C Exp(b_hat + db) R_bc, R_nc_seed = C Exp(b_hat) R_bc.
+    Its attitude and boresight columns are -M d psi / d (phi, db), by finite differences."""
+    from testbench.core.camera_geometry import mount_rotation
+    from testbench.core.rotations import dcm_to_quat, quat_to_rotvec
+
+    ekf = _boresight_ekf()
+    C = quat_to_dcm(X_HAT[4])
+    R_bc = mount_rotation(0.0, -90.0, 0.0)
+    exp = lambda v: quat_to_dcm(rotvec_to_quat(np.asarray(v, float)))  # noqa: E731
+    b = ekf.b_cam_rad
+    seed = C @ exp(b) @ R_bc
+
+    def psi(phi, db):
+        return quat_to_rotvec(dcm_to_quat(exp(phi) @ C @ exp(b + db) @ R_bc @ seed.T))
+
+    M = np.array([[60.0, -20.0, 5.0], [15.0, 70.0, -8.0], [3.0, 4.0, 2.0]])
+    H = meas.position_ned(ekf, [3000.0, -2000.0, -900.0], np.eye(3), ORIGIN, M)[1]
+    d = 1e-6
+    for j in range(3):
+        e = np.eye(3)[j] * d
+        np.testing.assert_allclose(H[:, IA.start + j], -M @ (psi(e, 0 * e) - psi(-e, 0 * e)) / (2 * d), rtol=1e-5, atol=1e-6)
+        # (to first order in b_hat: what is left is |b_hat|^2 / 12 of M, 1e-3 here against the
+        # 0.1 its first-order term makes)
+        np.testing.assert_allclose(H[:, ekf.i_cam.start + j], -M @ (psi(0 * e, e) - psi(0 * e, -e)) / (2 * d),
+                                   rtol=1e-5, atol=1e-3)
+    assert np.abs(H[:, ekf.i_cam]).max() > 10.0
