@@ -13,10 +13,10 @@ import dataclasses
 import numpy as np
 import pandas as pd
 
-from testbench.core.rotations import wrap_pi
+from testbench.core.rotations import dcm_to_quat, euler_to_dcm, quat_to_rotvec, wrap_pi
 from testbench.scoring.phases import telemetry_turning
 from testbench.scoring.record_io import RunRecord, column
-from testbench.scoring.result import GnssSkyStats, NavMetrics, NavSubset, NisStats, SpoofedNav
+from testbench.scoring.result import CameraBoresightStats, GnssSkyStats, NavMetrics, NavSubset, NisStats, SpoofedNav
 from testbench.scoring.stats import ChiSquareStats, chi_square_stats, error_stats
 
 MIN_AGL_FOR_PCT_M = 1.0  # below this the vehicle is on the ground: % of AGL is meaningless
@@ -163,6 +163,44 @@ def wind_nees(tel: pd.DataFrame, err: np.ndarray) -> np.ndarray:
     return _diag_nees(err, sig)
 
 
+def boresight_errors_rad(record: RunRecord) -> tuple[np.ndarray, np.ndarray] | None:
+    """((n, 3) estimated minus true boresight, (n, 3) claimed sigmas), rotation vectors in body
+    axes (rad), NaN on rows without an estimate; None when the record has no boresight columns
+    or no row with an estimate. The truth: run.json camera_boresight_error_deg (Z-Y-X angles)
+    of the camera camera_boresight_estimated names, zero when that camera has none."""
+    tel = record.telemetry
+    if "nav_boresight_x_rad" not in tel.columns:
+        return None
+    est = np.stack([column(tel, f"nav_boresight_{a}_rad") for a in "xyz"], axis=1)
+    sig = np.stack([column(tel, f"nav_sigma_boresight_{a}_rad") for a in "xyz"], axis=1)
+    truth = np.zeros_like(est)
+    errors = record.run_info.get("camera_boresight_error_deg") or {}
+    vehicles = tel["vehicle_id"].to_numpy()
+    for vid, camera in (record.run_info.get("camera_boresight_estimated") or {}).items():
+        rpy_deg = (errors.get(vid) or {}).get(camera)
+        if rpy_deg is not None:
+            truth[vehicles == vid] = quat_to_rotvec(dcm_to_quat(euler_to_dcm(np.radians(rpy_deg))))
+    err = est - truth
+    return (err, sig) if np.isfinite(err).all(axis=1).any() else None
+
+
+def camera_boresight_stats(record: RunRecord, err: np.ndarray, sig: np.ndarray) -> CameraBoresightStats:
+    """CameraBoresightStats of the boresight errors err (n, 3) and sigmas sig (n, 3) (rad,
+    boresight_errors_rad)."""
+    norm_deg = np.degrees(np.linalg.norm(err, axis=1))
+    denied = denied_mask(record) & np.isfinite(norm_deg)
+    finals, sigmas = [], []
+    vehicles = record.telemetry["vehicle_id"].to_numpy()
+    for vid in np.unique(vehicles):
+        rows = np.flatnonzero((vehicles == vid) & np.isfinite(norm_deg))
+        if len(rows):
+            finals.append(norm_deg[rows[-1]])
+            sigmas.append(float(np.degrees(np.linalg.norm(sig[rows[-1]]))))
+    return CameraBoresightStats(error_deg=error_stats(norm_deg[denied] if denied.any() else norm_deg),
+                                final_error_deg=max(finals) if finals else None,
+                                final_sigma_deg=max(sigmas) if sigmas else None)
+
+
 def _subset(e3: np.ndarray, eh: np.ndarray, pct: np.ndarray, dur: np.ndarray, mask: np.ndarray) -> NavSubset | None:
     if not mask.any():
         return None
@@ -276,6 +314,11 @@ def compute_nav(record: RunRecord) -> NavMetrics | None:
         s = chi_square_stats(wind_nees(tel, wind_err), 2)
         if s is not None:
             nees["wind"] = s
+    boresight = boresight_errors_rad(record)
+    if boresight is not None:
+        s = chi_square_stats(_diag_nees(*boresight), 3)
+        if s is not None:
+            nees["camera_boresight"] = s
 
     return NavMetrics(
         position_error_m=error_stats(np.linalg.norm(e3, axis=1)),
@@ -291,6 +334,7 @@ def compute_nav(record: RunRecord) -> NavMetrics | None:
         lost_at_s=lost_at_s(tel),
         wind_error_mps=None if wind_err is None else error_stats(np.hypot(wind_err[:, 0], wind_err[:, 1])),
         gnss_sky=gnss_sky_stats(record),
+        camera_boresight=None if boresight is None else camera_boresight_stats(record, *boresight),
     )
 
 

@@ -81,6 +81,20 @@ class GnssSkyStats(_Section):
 
 
 @dataclass(frozen=True)
+class CameraBoresightStats(_Section):
+    """A navigator's estimate of its scene-matching camera's boresight error against the true
+    one (run.json camera_boresight_error_deg of the camera in camera_boresight_estimated), as
+    rotation vectors in body axes: error_deg, ErrorStats of |estimate - truth| (deg) over the
+    GNSS-denied rows (all rows without any); final_error_deg / final_sigma_deg, |estimate -
+    truth| and the root-sum-square of the claimed sigmas at each vehicle's last row (the
+    largest over vehicles)."""
+
+    error_deg: ErrorStats | None = None
+    final_error_deg: float | None = None
+    final_sigma_deg: float | None = None
+
+
+@dataclass(frozen=True)
 class NavSubset(_Section):
     """Navigation error over a subset of time (GNSS-denied, smooth, turning).
 
@@ -147,7 +161,10 @@ class NavMetrics(_Section):
     beyond a 5.5-sigma bound of its own covariance for 10 s), None if never;
     wind_error_mps: |estimated - true| horizontal wind (m/s; the truth with its turbulence)
     over the rows where the navigator estimates the wind (with nees "wind", 2 dof), else None;
-    gnss_sky: the satellites the receivers saw (GnssSkyStats), None without a sky model.
+    gnss_sky: the satellites the receivers saw (GnssSkyStats), None without a sky model;
+    camera_boresight: the estimate of the scene-matching camera's boresight against its truth
+    (CameraBoresightStats, with nees "camera_boresight", 3 dof), None where no navigator
+    estimates one.
     """
 
     position_error_m: ErrorStats | None = None
@@ -163,6 +180,7 @@ class NavMetrics(_Section):
     lost_at_s: float | None = None
     wind_error_mps: ErrorStats | None = None
     gnss_sky: GnssSkyStats | None = None
+    camera_boresight: CameraBoresightStats | None = None
 
 
 @dataclass(frozen=True)

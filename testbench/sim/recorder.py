@@ -47,16 +47,27 @@ TELEMETRY_WIND_COLUMNS = (
     "nav_wind_n_mps", "nav_wind_e_mps", "nav_sigma_wind_n_mps", "nav_sigma_wind_e_mps",
 )
 
+# With Recorder(boresight_columns=True): the navigator's estimate of its scene-matching camera's
+# boresight error (body axes, rotation vector) with its sigmas (NaN where it estimates none).
+TELEMETRY_BORESIGHT_COLUMNS = (
+    "nav_boresight_x_rad", "nav_boresight_y_rad", "nav_boresight_z_rad",
+    "nav_sigma_boresight_x_rad", "nav_sigma_boresight_y_rad", "nav_sigma_boresight_z_rad",
+)
+
 _NAN = float("nan")
 
 
 class Recorder:
     """Accumulates telemetry rows and event rows for one run; wind_columns: add
-    TELEMETRY_WIND_COLUMNS (a scenario with wind, or a navigator that estimates it)."""
+    TELEMETRY_WIND_COLUMNS (a scenario with wind, or a navigator that estimates it);
+    boresight_columns: add TELEMETRY_BORESIGHT_COLUMNS (a navigator that estimates its camera's
+    boresight)."""
 
-    def __init__(self, wind_columns: bool = False) -> None:
+    def __init__(self, wind_columns: bool = False, boresight_columns: bool = False) -> None:
         self._wind_columns = bool(wind_columns)
-        self._float_columns = TELEMETRY_FLOAT_COLUMNS + (TELEMETRY_WIND_COLUMNS if wind_columns else ())
+        self._boresight_columns = bool(boresight_columns)
+        self._float_columns = (TELEMETRY_FLOAT_COLUMNS + (TELEMETRY_WIND_COLUMNS if wind_columns else ())
+                               + (TELEMETRY_BORESIGHT_COLUMNS if boresight_columns else ()))
         self._tel: dict[str, list] = {c: [] for c in self._float_columns}
         self._vehicle: list[str] = []
         self._leg: list[int] = []
@@ -117,6 +128,8 @@ class Recorder:
         app("gd_bank_cmd_rad", s.bank_cmd_rad)
         if self._wind_columns:
             self._record_wind(truth, est)
+        if self._boresight_columns:
+            self._record_boresight(est)
         self._vehicle.append(vehicle_id)
         self._leg.append(int(s.leg_index))
         self._on_leg.append(bool(s.on_leg))
@@ -131,6 +144,13 @@ class Recorder:
         c["nav_wind_e_mps"].append(_NAN if w is None else float(w[1]))
         c["nav_sigma_wind_n_mps"].append(_NAN if W is None else math.sqrt(max(W[0][0], 0.0)))
         c["nav_sigma_wind_e_mps"].append(_NAN if W is None else math.sqrt(max(W[1][1], 0.0)))
+
+    def _record_boresight(self, est: NavEstimate) -> None:
+        c = self._tel
+        b, B = est.camera_boresight_b_rad, est.cov_camera_boresight_rad2
+        for i, axis in enumerate("xyz"):
+            c[f"nav_boresight_{axis}_rad"].append(_NAN if b is None else float(b[i]))
+            c[f"nav_sigma_boresight_{axis}_rad"].append(_NAN if B is None else math.sqrt(max(B[i][i], 0.0)))
 
     def correction(self, vehicle_id: str, info: CorrectionInfo) -> None:
         """One navigator correction (what was done with one measurement)."""

@@ -77,7 +77,8 @@ def build_engine(
     record_every = decimation(scn.record_rate_hz, scn.physics_rate_hz, "record_rate_hz")
     # Wind columns where there is wind to score or an estimate of it (records of calm-air
     # runs whose navigators carry no wind keep their columns as before).
-    recorder = Recorder(wind_columns=scn.world.wind is not None or any(rt.navigator.estimates_wind for rt in vehicles))
+    recorder = Recorder(wind_columns=scn.world.wind is not None or any(rt.navigator.estimates_wind for rt in vehicles),
+                        boresight_columns=any(getattr(rt.navigator, "estimates_camera_boresight", False) for rt in vehicles))
     engine = Engine(
         vehicles, world, scn.physics_rate_hz, scn.duration_s, record_every, recorder,
         realtime=realtime, on_progress=on_progress, frame_sink=frame_sink, formation=scn.formation,
@@ -213,9 +214,25 @@ def _run_info(loaded: LoadedScenario, engine: Engine, world: RunWorld, result: E
         "gnss_denied_windows": {v.id: _gnss_denied_windows(v.spec, result.sim_time_s) for v in engine.vehicles},
         "gnss_spoofed_windows": {v.id: _gnss_denial_windows(v.spec, result.sim_time_s, "spoofing") for v in engine.vehicles},
         "aid_counters": _aid_counters(engine),
+        "camera_boresight_error_deg": _camera_boresights(engine),
+        "camera_boresight_estimated": {v.id: v.navigator.boresight_camera for v in engine.vehicles
+                                       if getattr(v.navigator, "boresight_camera", None)},
         # The code, library builds and CPU features the record's bits depend on (provenance).
         "environment": environment(),
     }
+
+
+def _camera_boresights(engine: Engine) -> dict[str, dict[str, list[float]]]:
+    """vehicle id -> camera name -> its true boresight error (roll, pitch, yaw about body x, y,
+    z; deg; CameraSensor.boresight_error_deg), for the cameras that have one: the truth a
+    navigator's boresight estimate is scored against."""
+    out: dict[str, dict[str, list[float]]] = {}
+    for v in engine.vehicles:
+        for slot in v.sensors:
+            err = getattr(slot.sensor, "boresight_error_deg", None)
+            if err is not None and np.any(err):
+                out.setdefault(v.id, {})[slot.name] = [float(x) for x in err]
+    return out
 
 
 def _aid_counters(engine: Engine) -> dict[str, dict[str, dict[str, int]]]:

@@ -338,3 +338,34 @@ def test_relnav_track_id_rate_from_the_decoded_track_frames():
     res = score_record(record_of(tel, {"relnav": rel, "relnav_id": ids}, vehicles=[{"id": "a"}]), metrics=[])
     assert res.relnav.track_id_correct_rate == pytest.approx(0.75)
     assert res.relnav.track_id_ambiguous_rate == pytest.approx(0.2)
+
+
+def test_camera_boresight_estimate_is_scored_against_the_cameras_truth():
+    """nav.camera_boresight: the estimate (telemetry nav_boresight_*, a body-axes rotation
+    vector) against the true boresight of the camera run.json names (Z-Y-X degrees, turned
+    into a rotation vector), over the GNSS-denied rows; its final error and sigma; nees
+    camera_boresight (3 dof). A camera without a recorded error has a zero truth."""
+    from testbench.core.rotations import dcm_to_quat, euler_to_dcm, quat_to_rotvec
+
+    n = 100
+    truth_deg = [0.4, -0.3, 0.5]
+    b = quat_to_rotvec(dcm_to_quat(euler_to_dcm(np.radians(truth_deg))))
+    tel = straight_telemetry(n=n, err_ned=(0.0, 0.0, 0.0))
+    tel["gnss_available"] = np.arange(n) < 50
+    off = np.radians(0.02) * np.array([1.0, -1.0, 2.0])  # the estimate after convergence
+    for i, axis in enumerate("xyz"):
+        tel[f"nav_boresight_{axis}_rad"] = np.where(np.arange(n) < 10, 0.0, b[i] + off[i])
+        tel[f"nav_sigma_boresight_{axis}_rad"] = np.radians(0.02)
+    info = dict(camera_boresight_error_deg={"a": {"down": truth_deg}}, camera_boresight_estimated={"a": "down"})
+    nav = compute_nav(record_of(tel, **info))
+    c = nav.camera_boresight
+    assert c.error_deg.n == 50 and c.error_deg.mean == pytest.approx(0.02 * np.sqrt(6.0), rel=1e-6)
+    assert c.final_error_deg == pytest.approx(0.02 * np.sqrt(6.0), rel=1e-6)
+    assert c.final_sigma_deg == pytest.approx(0.02 * np.sqrt(3.0), rel=1e-6)
+    assert nav.nees["camera_boresight"].n == n
+    # The exact figures above need the truth as a rotation vector: read as Euler radians it is
+    # a thousandth of a degree off, a thousand times the tolerance.
+    assert np.degrees(np.abs(np.radians(truth_deg) - b)).max() > 1e-3
+    no_truth = compute_nav(record_of(tel, camera_boresight_estimated={"a": "down"})).camera_boresight
+    assert no_truth.final_error_deg == pytest.approx(np.degrees(np.linalg.norm(b + off)), rel=1e-6)
+    assert compute_nav(record_of(tel.drop(columns=[c for c in tel.columns if "boresight" in c]))).camera_boresight is None
