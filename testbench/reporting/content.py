@@ -27,6 +27,7 @@ KEY_METRICS = (
     "nav.spoofed.horizontal_error_m.mean", "nav.spoofed.horizontal_error_m.max", "nav.spoofed.gnss_accept_rate",
     "nav.spoofed.gnss_captured_s",
     "nav.nees.position.mean", "nav.nees.position.frac_in_95", "nav.wind_error_mps.mean", "nav.wind_error_mps.p95",
+    "nav.camera_boresight.final_error_deg", "nav.camera_boresight.final_sigma_deg",
     "nav.gnss_sky.satellites_visible_mean", "nav.gnss_sky.satellites_visible_min", "nav.gnss_sky.fix_share",
     "nav.gnss_sky.hdop.p95", "nav.gnss_sky.hdop_open_sky_median",
     "control.altitude_error_m.rms", "control.cross_track_error_m.rms", "control.airspeed_error_mps.rms",
