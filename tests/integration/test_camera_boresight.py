@@ -6,7 +6,9 @@ of the turned camera for a position error.
 
 Measured on the 300 s flight (docs/measurements.md, "A camera off its calibration"): with the
 boresight (0.5, -0.5, 0.5) deg, the navigator without the states was lost at 64 s (denied mean
-26 m), with them 0.48 m."""
+26 m), with them 0.51 m. Here the boresight is (1, -1, 1) deg (1.7 deg in all), which the tiles
+find only because they search as far as the camera's heading is uncertain, the unlearnt
+boresight's yaw included."""
 
 from __future__ import annotations
 
@@ -17,8 +19,8 @@ from testbench.cli import main
 
 REPO = Path(__file__).resolve().parents[2]
 SCENARIO = str(REPO / "scenarios" / "paper_ismn_800m.yaml")
-MISALIGNED = "vehicles.uav0.sensors.down.mount_error_deg=[0.5, -0.5, 0.5]"
-STATES = ("--set", "vehicles.uav0.navigation.params.camera_boresight={sigma_deg: 0.5}",
+MISALIGNED = "vehicles.uav0.sensors.down.mount_error_deg=[1.0, -1.0, 1.0]"
+STATES = ("--set", "vehicles.uav0.navigation.params.camera_boresight={sigma_deg: 1.0}",
           "--set", "vehicles.uav0.aids.ismn.pipeline.pose_from_image=true")
 
 
@@ -34,7 +36,7 @@ def test_the_boresight_states_learn_a_misaligned_camera_and_keep_the_fixes(tmp_p
     nav = m["nav"]
     # (80 s holds no turn, so the turning gate has nothing to score)
     assert code in (0, 3) and all(f["kind"] == "missing" for f in m["thresholds"]["failed"]), m["thresholds"]["failed"]
-    assert nav["camera_boresight"]["final_error_deg"] < 0.05  # of 0.87 deg
+    assert nav["camera_boresight"]["final_error_deg"] < 0.05  # of 1.7 deg
     assert nav["denied"]["horizontal_error_m"]["max"] < 2.0
     _, plain = _run(tmp_path, "plain")
     assert plain["ismn"]["smooth"]["horizontal_error_m"]["mean"] > 3 * m["ismn"]["smooth"]["horizontal_error_m"]["mean"]

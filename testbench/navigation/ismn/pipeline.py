@@ -267,8 +267,12 @@ class IsmnPipeline:
         # A matcher that takes the OrthoFrame warps only what it uses (the area matchers: a
         # coarse level and their tiles); any other gets the whole warped image and its mask.
         lazy = bool(getattr(self.matcher, "accepts_ortho_frame", False))
+        # The tiles search as far as the camera's heading is uncertain: the seeded estimate's,
+        # with an unlearnt boresight's yaw in it (with the INS's alone, an unlearnt boresight left
+        # the first fixes' tiles 20-30 m off at 1.5 deg, and their image pose showing a tenth of it).
+        cam_heading_sigma = math.sqrt(max(float(np.asarray(estimate.cov_att_rad2, float)[2, 2]), 0.0))
         prior = MatchPrior((float(c0), float(r0)), win.margin_m / g, None if lazy else of.valid, mapw.valid, g, feats,
-                           heading_sigma, levels)
+                           cam_heading_sigma, levels)
         res = self.matcher.match(of if lazy else of.image, map_grey, prior)
         t3 = time.perf_counter()
         lat["match"] = 1e3 * (t3 - t2)
