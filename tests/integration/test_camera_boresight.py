@@ -36,7 +36,10 @@ def test_the_boresight_states_learn_a_misaligned_camera_and_keep_the_fixes(tmp_p
     nav = m["nav"]
     # (80 s holds no turn, so the turning gate has nothing to score)
     assert code in (0, 3) and all(f["kind"] == "missing" for f in m["thresholds"]["failed"]), m["thresholds"]["failed"]
-    assert nav["camera_boresight"]["final_error_deg"] < 0.05  # of 1.7 deg
+    # Of 1.7 deg; measured 0.035 deg (claimed 0.061): learnt to 0.1 deg by the image pose, then
+    # refined by the MAP fixes' coupling (camera_boresight.handover_sigma_deg).
+    b = nav["camera_boresight"]
+    assert b["final_error_deg"] < 0.08 and b["final_error_deg"] < 3 * b["final_sigma_deg"], b
     assert nav["denied"]["horizontal_error_m"]["max"] < 2.0
     _, plain = _run(tmp_path, "plain")
     assert plain["ismn"]["smooth"]["horizontal_error_m"]["mean"] > 3 * m["ismn"]["smooth"]["horizontal_error_m"]["mean"]

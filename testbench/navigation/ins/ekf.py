@@ -110,7 +110,8 @@ class ErrorStateEKF(Reacquisition):
     camera_boresight_sigma_rad: 1-sigma per body axis of the scene-matching camera's boresight
     error b_cam (its true mounting R_bc_true = Exp(b_cam) R_bc, body axes, rad; 0: no such
     states): three random constants after the others (self.i_cam), learnt from the image's
-    pose against the INS attitude (measurements.image_pose). A camera mount known to 0.1 deg
+    pose against the INS attitude (measurements.image_pose), then through the MAP fixes'
+    attitude coupling (measurements.position_ned). A camera mount known to 0.1 deg
     moves the fixes of a camera 800 m up by 1.4 m, the same way for a whole leg.
     gyro_scale_sigma, scale_corr_angle_rad: the gyros' scale-factor and cross-axis error (1 sigma,
     rad per rad turned) is a constant error in each rate the IMU reads, which the error state

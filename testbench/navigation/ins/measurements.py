@@ -278,11 +278,17 @@ def zero_sideslip(ekf, sigma_rad: float):
 def fix_heading(ekf, heading_rad: float, sigma_rad: float):
     """A heading measured independently of the filter (a scene-matching pose solve's image-only
     yaw): y = heading - nominal yaw (wrapped), H on the attitude error through
-    heading_sensitivity (a tilt error moves the yaw where the body's x axis is not level)."""
+    heading_sensitivity (a tilt error moves the yaw where the body's x axis is not level).
+    With the camera's boresight states (ekf.i_cam) the solve was seeded with the mounting
+    corrected by the estimate, so the heading it reads is off by what is left of the
+    boresight, C (b - b_hat) in NED: H_b = h C, as the attitude rows of image_pose."""
     C = ekf.C_nb
     y = np.array([float(wrap_pi(heading_rad - dcm_to_euler(C)[2]))])
     H = np.zeros((1, ekf.n))
-    H[0, IA] = heading_sensitivity(C)
+    h = heading_sensitivity(C)
+    H[0, IA] = h
+    if ekf.i_cam is not None:
+        H[0, ekf.i_cam] = h @ C
     return y, H, np.array([[float(sigma_rad) ** 2]])
 
 

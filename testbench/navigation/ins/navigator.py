@@ -226,7 +226,8 @@ class InsEkfNavigator(Navigator):
         if isinstance(measurement, PositionFix):
             if not p.use_position_fix:
                 return None
-            if ekf.i_cam is not None and measurement.image_pose_cov is not None:
+            if (ekf.i_cam is not None and measurement.image_pose_cov is not None
+                    and self._boresight_needs_image_pose()):
                 return self._correct_image_pose(measurement, t)
             # A fix that declares how it leaned on our attitude is fused with that coupling
             # (H_phi = -M) and its covariance given the attitude; otherwise as independent.
@@ -373,6 +374,16 @@ class InsEkfNavigator(Navigator):
             reset)
         self._fix_refusals = 0 if info.accepted else self._fix_refusals + 1
         return info
+
+    def _boresight_needs_image_pose(self) -> bool:
+        """Whether a fix's image-only pose is fused rather than its MAP position: while the
+        boresight's largest 1-sigma is above camera_boresight.handover_sigma_deg (always
+        without one). The states have no process noise: their covariance only shrinks."""
+        h = self.params.camera_boresight.handover_sigma_deg
+        if h is None:
+            return True
+        P_b = self.ekf.P[self.ekf.i_cam, self.ekf.i_cam]
+        return float(np.sqrt(np.linalg.eigvalsh(0.5 * (P_b + P_b.T)).max())) > h * DEG_TO_RAD
 
     def _correct_image_pose(self, fix: PositionFix, t: float) -> CorrectionInfo:
         """A fix's image-only pose (position and attitude, one 6-dof measurement) with the

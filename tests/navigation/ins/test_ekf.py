@@ -753,3 +753,35 @@ def test_the_camera_boresight_states_learn_the_tilt_of_a_misaligned_camera():
     assert abs(np.degrees(est.rpy_rad[2] + est.camera_boresight_b_rad[2] - b[2])) < 0.01
     info = nav.correct(PositionFix(31.0, true_ned, np.eye(3), 0.9))
     assert info.kind == "position_fix:ismn" and info.innovation.shape == (3,)
+
+
+def test_the_boresight_states_hand_over_to_the_map_fix_once_learnt():
+    """camera_boresight.handover_sigma_deg: while the boresight's largest 1-sigma is above it a
+    fix's image-only pose is fused (6 dof); below it the same fix is fused as its MAP position
+    with the boresight columns (3 dof); without a handover (None) the image pose throughout."""
+    true_ned = geodesy.geodetic_to_ned(LAT0, LON0, H0, ORIGIN.lat_rad, ORIGIN.lon_rad, ORIGIN.alt_m)
+    q = np.array([1.0, 0, 0, 0])
+    w, f = static_imu(LAT0, H0, q)
+    pose_cov = np.diag([1.0, 1.0, 1.0] + [np.radians(0.02) ** 2] * 3)
+
+    def fix(t):
+        return PositionFix(t, true_ned, np.eye(3), 0.9, image_pos_ned_m=true_ned, image_R_nb=np.eye(3),
+                           image_pose_cov=pose_cov)
+
+    kinds = {}
+    for handover in (0.1, None):
+        nav = _navigator(camera_boresight={"sigma_deg": 0.5, "handover_sigma_deg": handover})
+        nav.initialize(0.0, _estimate_from(LAT0, LON0, H0, np.zeros(3), q))
+        nav.predict(ImuSample(0.05, w, f))
+        first = nav.correct(fix(0.05))
+        # Learnt: the boresight's covariance taken down below the handover (its yaw part too,
+        # which a static vehicle cannot show).
+        i = nav.ekf.i_cam
+        nav.ekf.P[i, :] = 0.0
+        nav.ekf.P[:, i] = 0.0
+        nav.ekf.P[i, i] = np.radians(0.05) ** 2 * np.eye(3)
+        nav.predict(ImuSample(0.10, w, f))
+        second = nav.correct(fix(0.10))
+        kinds[handover] = (first.kind, first.innovation.shape, second.kind, second.innovation.shape)
+    assert kinds[0.1] == ("image_pose:ismn", (6,), "position_fix:ismn", (3,))
+    assert kinds[None] == ("image_pose:ismn", (6,), "image_pose:ismn", (6,))

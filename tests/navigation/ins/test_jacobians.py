@@ -254,6 +254,26 @@ def test_image_pose_H_with_the_camera_boresight_states_matches_finite_difference
     np.testing.assert_allclose(H, H_num, rtol=1e-5, atol=3e-6 * np.abs(H).max())
 
 
+def test_fix_heading_H_with_the_camera_boresight_states_matches_finite_differences():
+    """The image heading of a solve seeded with the mounting corrected by the boresight
+    estimate reads the heading of Exp(phi + C db) C: its boresight columns are its attitude
+    columns times C (finite differences over db of that heading)."""
+    from testbench.core.rotations import dcm_to_euler
+
+    ekf = _boresight_ekf()
+    C = quat_to_dcm(X_HAT[4])
+    exp = lambda v: quat_to_dcm(rotvec_to_quat(np.asarray(v, float)))  # noqa: E731
+    H = meas.fix_heading(ekf, 0.3, 0.01)[1]
+    d = 1e-6
+    for j in range(3):
+        e = np.eye(3)[j] * d
+        num = (dcm_to_euler(exp(C @ e) @ C)[2] - dcm_to_euler(exp(-C @ e) @ C)[2]) / (2 * d)
+        assert H[0, ekf.i_cam.start + j] == pytest.approx(num, rel=1e-5, abs=1e-7)
+        num_phi = (dcm_to_euler(exp(e) @ C)[2] - dcm_to_euler(exp(-e) @ C)[2]) / (2 * d)
+        assert H[0, IA.start + j] == pytest.approx(num_phi, rel=1e-5, abs=1e-7)
+    assert np.abs(H[0, ekf.i_cam]).max() > 0.5
+
+
 def test_coupled_fix_H_with_the_camera_boresight_states_follows_the_seeded_solve():
     """A fix that leaned on the prior (error -M psi, psi the seed's camera attitude error) from
     a solve seeded with the mounting corrected by the boresight estimate: psi = Log(R_nc_true
