@@ -250,7 +250,10 @@ class CameraBoresight(ParamsModel):
     instead of its MAP position, and the image's attitude against the INS attitude shows the
     boresight: while GNSS holds the position and
     the manoeuvres the heading, the tilt part settles within a few fixes; the yaw part, which
-    only the heading separates from the INS's own yaw error, more slowly.
+    only the heading separates from the INS's own yaw error, more slowly. Where the heading
+    stays uncertain for long (a magnetic anomaly, paper_ismn_anomaly) the yaw part and the
+    attitude come out overconfident (attitude NEES 7-9 against 3.45 without the states;
+    docs/measurements.md, "A camera off its calibration").
 
     sigma_deg: 1-sigma per body axis of the boresight before any fix (a mount known from the
     drawing, not calibrated: 0.5-1 deg; after a calibration flight: 0.02-0.05 deg).
