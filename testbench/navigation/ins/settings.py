@@ -248,9 +248,9 @@ class CameraBoresight(ParamsModel):
     alike. Until the boresight is learnt (handover_sigma_deg) the filter fuses each fix's
     image-only pose (ismn pose_from_image: position and attitude with their joint covariance)
     instead of its MAP position, and the image's attitude against the INS attitude shows the
-    boresight: while GNSS holds the position and
-    the manoeuvres the heading, the tilt part settles within a few fixes; the yaw part, which
-    only the heading separates from the INS's own yaw error, more slowly. Where the heading
+    boresight: while GNSS holds the position and the manoeuvres the heading, the tilt part
+    settles within a few fixes; the yaw part, which only the heading separates from the INS's
+    own yaw error, more slowly. Where the heading
     stays uncertain for long (a magnetic anomaly, paper_ismn_anomaly) the yaw part and the
     attitude come out overconfident (attitude NEES 7-9 against 3.45 without the states;
     docs/measurements.md, "A camera off its calibration").

@@ -110,6 +110,12 @@ class IsmnParams(ParamsModel):
     cache_map: bool = True  # serve search windows from a larger cached map read (see mapcache)
 
 
+def _heading_sigma_rad(estimate: NavEstimate) -> float:
+    """1-sigma (rad) of the heading of an estimate: its attitude covariance's down-axis part
+    (NED small angles)."""
+    return math.sqrt(max(float(np.asarray(estimate.cov_att_rad2, float)[2, 2]), 0.0))
+
+
 class IsmnPipeline:
     """One camera's scene-matching position fixes against an onboard reference map."""
 
@@ -210,7 +216,7 @@ class IsmnPipeline:
         pos, R_nb = estimate_pose(estimate)
         # The heading gate reads the INS's own heading: a boresight's yaw is learnt from the
         # fixes alone, and a gate on the camera's would wait for it for ever.
-        heading_sigma = math.sqrt(max(float(np.asarray(estimate.cov_att_rad2, float)[2, 2]), 0.0))
+        heading_sigma = _heading_sigma_rad(estimate)
         mount, estimate = self._seed(estimate, R_nb)
         centre, R_nc = camera_pose_ned(pos, R_nb, mount)
         ground_down, height_fn = self._ground(centre, R_nc)
@@ -270,7 +276,7 @@ class IsmnPipeline:
         # The tiles search as far as the camera's heading is uncertain: the seeded estimate's,
         # with an unlearnt boresight's yaw in it (with the INS's alone, an unlearnt boresight left
         # the first fixes' tiles 20-30 m off at 1.5 deg, and their image pose showing a tenth of it).
-        cam_heading_sigma = math.sqrt(max(float(np.asarray(estimate.cov_att_rad2, float)[2, 2]), 0.0))
+        cam_heading_sigma = _heading_sigma_rad(estimate)
         prior = MatchPrior((float(c0), float(r0)), win.margin_m / g, None if lazy else of.valid, mapw.valid, g, feats,
                            cam_heading_sigma, levels)
         res = self.matcher.match(of if lazy else of.image, map_grey, prior)
