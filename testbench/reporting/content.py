@@ -6,6 +6,7 @@ import logging
 from pathlib import Path
 from typing import Any
 
+from testbench.reporting import figures_boresight as fb
 from testbench.reporting import figures_events as fe
 from testbench.reporting import figures_gnss as fg
 from testbench.reporting import figures_nav as fn
@@ -203,7 +204,7 @@ def build_report(run_dir: str | Path, result: MetricsResult | None = None) -> Re
     vt = _vehicle_table(result)
     sections.append(Section("Summary", "summary", [t for t in (Table("Key metrics", ["metric", "value"], summary_rows), vt) if t]))
     nav_figs = _figs(fn.trajectory_figure(record), fn.error_time_figures(record), fn.cdf_figure(record),
-                     fw.wind_figures(record), fg.gnss_sky_figures(record))
+                     fw.wind_figures(record), fb.boresight_figures(record), fg.gnss_sky_figures(record))
     sections.append(Section("Navigation", "navigation", figures=nav_figs))
     control_rows = _metric_rows(flat, [k for k in flat if k.startswith("control.") and not k.endswith(".n")])
     ctrl_fig = fn.control_figure(record)

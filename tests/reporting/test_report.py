@@ -168,3 +168,32 @@ def test_gnss_sky_figure_and_summary_where_a_receiver_had_a_sky_model(tmp_path):
         html = unescape(write_html_report(d).read_text())
         assert ("GNSS satellites in view" in html) == with_sky
         assert ("nav.gnss_sky.fix_share" in html) == with_sky
+
+
+def test_boresight_figure_where_a_navigator_estimates_its_cameras_boresight(tmp_path):
+    """A record with the boresight columns and run.json's camera truth gets the boresight
+    figure (three body axes, one more image), titled per vehicle; one without has none."""
+    import pandas as pd
+
+    counts = {}
+    for with_b in (True, False):
+        d = make_synthetic_run(tmp_path / str(with_b), np.random.default_rng(1), n_vehicles=1, duration_s=10.0,
+                               rate_hz=5.0, with_events=False, with_images=False)
+        if with_b:
+            info = json.loads((d / "run.json").read_text())
+            vid = info["vehicles"][0]["id"]
+            tel = pd.read_parquet(d / "telemetry.parquet")
+            t = tel["t_s"].to_numpy()
+            for k, axis in enumerate("xyz"):
+                # learnt from 2 s, to within 0.01 deg of the truth (0.5, -0.3, 0.2) deg
+                tel[f"nav_boresight_{axis}_rad"] = np.where(t < 2.0, 0.0, np.radians([0.5, -0.3, 0.2][k] + 0.01))
+                tel[f"nav_sigma_boresight_{axis}_rad"] = np.radians(np.where(t < 2.0, 0.5, 0.02))
+            tel.to_parquet(d / "telemetry.parquet")
+            info["camera_boresight_error_deg"] = {vid: {"down": [0.5, -0.3, 0.2]}}
+            info["camera_boresight_estimated"] = {vid: "down"}
+            (d / "run.json").write_text(json.dumps(info))
+        html = unescape(write_html_report(d).read_text())
+        assert ("Camera boresight vs time" in html) == with_b
+        assert ("nav.camera_boresight.final_error_deg" in html) == with_b
+        counts[with_b] = len(decoded_images(html))
+    assert counts[True] == counts[False] + 1
