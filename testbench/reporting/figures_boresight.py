@@ -21,8 +21,9 @@ def _boresight_panels(record: RunRecord, vid: str, err_deg: np.ndarray, sig_deg:
     camera = (record.run_info.get("camera_boresight_estimated") or {}).get(vid, "camera")
     fig = new_figure(9.0, 6.5)
     axes = fig.subplots(3, 1, sharex=True)
+    denied = denied_spans(record, vid)
     for k, (ax, name) in enumerate(zip(axes, ("x (roll)", "y (pitch)", "z (yaw)"))):
-        shade_spans(ax, denied_spans(record, vid))
+        shade_spans(ax, denied)
         e, s = err_deg[:, k], sig_deg[:, k]
         ax.plot(t, e, lw=1.0, color="C0", label="estimate − truth")
         ax.fill_between(t, -3 * s, 3 * s, color="C0", alpha=0.15, lw=0, label="±3σ (reported)")
