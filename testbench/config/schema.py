@@ -115,6 +115,50 @@ class DemError(pydantic.BaseModel):
     seed: int | None = Field(default=None, ge=0)
 
 
+class CloudCoverage(pydantic.BaseModel):
+    """Another coverage of the cloud layer for a while: `coverage` (0-1) over [start_s, end_s)."""
+
+    model_config = _CFG
+    start_s: float = Field(ge=0.0)
+    end_s: float = math.inf
+    coverage: float = Field(ge=0.0, le=1.0)
+
+    @model_validator(mode="after")
+    def _ordered(self):
+        if not self.end_s > self.start_s:
+            raise ValueError(f"end_s {self.end_s} is not after start_s {self.start_s} (expected a window of time, s)")
+        return self
+
+
+class Clouds(pydantic.BaseModel):
+    """A broken cloud layer (world/clouds.py): a thin sheet at base_m above the origin's
+    altitude, which the cameras see instead of what lies beyond it. coverage: the share of the
+    sky under cloud (0 clear, 1 overcast), and `windows` another coverage for a while (an
+    overcast spell: `[{start_s: 120, end_s: 240, coverage: 1.0}]`); cell_m: the clouds' typical
+    size; opacity: how much light an optically thick cloud takes (0-1); drift_ne_mps: the
+    clouds' velocity over the ground, north and east (None: the world's steady wind, calm:
+    still). seed: the field's own seed (the same clouds in every run); None draws it from the
+    run's seed, so each run of a Monte Carlo batch meets other clouds."""
+
+    model_config = _CFG
+    base_m: float = Field(gt=0.0, le=20_000.0)
+    coverage: float = Field(default=0.5, ge=0.0, le=1.0)
+    windows: list[CloudCoverage] = Field(default_factory=list)
+    cell_m: float = Field(default=300.0, gt=1.0, le=50_000.0)
+    opacity: float = Field(default=1.0, ge=0.0, le=1.0)
+    drift_ne_mps: tuple[float, float] | None = None
+    seed: int | None = Field(default=None, ge=0)
+
+    @model_validator(mode="after")
+    def _windows_apart(self):
+        spans = sorted((w.start_s, w.end_s) for w in self.windows)
+        for (s0, e0), (s1, _) in zip(spans, spans[1:]):
+            if s1 < e0:
+                raise ValueError(f"cloud coverage windows overlap: one from {s0} s runs to {e0} s, past the next's "
+                                 f"start at {s1} s (expected windows one after another)")
+        return self
+
+
 class ObstacleBox(pydantic.BaseModel):
     """A box-shaped obstacle (building, tower, mast): axis-aligned in the local NED frame,
     min_ned_m and max_ned_m its corners [north, east, down] in metres from the origin (down
@@ -146,7 +190,8 @@ class World(pydantic.BaseModel):
     """The world: origin, what cameras render (imagery), what vehicles carry (reference_map),
     terrain (elevation), the terrain model vehicles carry (reference_elevation, default the terrain; its error
     reference_elevation_error: DemError, None: none), obstacles (boxes: ObstacleBox), the air mass (wind; None: calm
-    air), the crust's magnetic anomaly (None: the magnetometers sense the WMM the vehicles carry, exactly). Maps are
+    air), the crust's magnetic anomaly (None: the magnetometers sense the WMM the vehicles carry, exactly), a cloud layer
+    between the cameras and the ground (clouds: Clouds; None: clear sky). Maps are
     GeoTIFF paths (with ${VAR} expansion) or `procedural:` specs; None means no imagery / flat ground.
     imagery_credit: the imagery's attribution, printed in the run's report, which shows the imagery (a CC BY
     licence asks for it wherever the data is shown)."""
@@ -162,6 +207,7 @@ class World(pydantic.BaseModel):
     obstacles: list[ObstacleBox] = Field(default_factory=list)
     wind: Wind | None = None
     magnetic_anomaly: MagneticAnomaly | None = None
+    clouds: Clouds | None = None
 
 
 class InitialState(pydantic.BaseModel):

@@ -45,6 +45,7 @@ class RunWorld:
         self.cache_dir = cache_dir or default_cache_dir()
         self._streams = streams
         self._magnetic_anomaly: CrustalAnomaly | None = None
+        self._clouds = None  # world.clouds.CloudLayer, drawn on first use
         self._imagery = None
         self._reference = None
         self._elevation = None
@@ -90,7 +91,7 @@ class RunWorld:
     def _world_rng(self, key: str, seed: int | None) -> np.random.Generator:
         """The generator of what world.<key> draws: its own seed's stream (the same in every
         run), else the run's (each run of a batch draws anew)."""
-        stream = {"magnetic_anomaly": "magnetic_anomaly", "reference_elevation_error": "dem_error"}[key]
+        stream = {"magnetic_anomaly": "magnetic_anomaly", "reference_elevation_error": "dem_error", "clouds": "clouds"}[key]
         if seed is not None:
             return RngStreams(seed).generator("world", stream)
         if self._streams is None:
@@ -105,6 +106,22 @@ class RunWorld:
         rng = self._world_rng("magnetic_anomaly", spec.seed)
         self._magnetic_anomaly = CrustalAnomaly(spec.rms_nT, spec.source_depth_m, rng, n_waves=spec.waves)
         return self._magnetic_anomaly
+
+    def cloud_layer(self):
+        """The cloud layer (world.clouds.CloudLayer; None when the sky is clear), drawn once.
+        It drifts with the world's steady wind unless the scenario gives its own drift."""
+        spec = self.spec.clouds
+        if spec is None or self._clouds is not None:
+            return self._clouds
+        from testbench.world.clouds import CloudLayer, CoverageWindow
+
+        drift = spec.drift_ne_mps
+        if drift is None:
+            drift = self.spec.wind.velocity_ned_mps()[:2] if self.spec.wind is not None else (0.0, 0.0)
+        windows = [CoverageWindow(w.start_s, w.end_s, w.coverage) for w in spec.windows]
+        self._clouds = CloudLayer(spec.base_m, spec.coverage, windows, spec.cell_m, spec.opacity, drift,
+                                  self._world_rng("clouds", spec.seed))
+        return self._clouds
 
     def elevation(self):
         """Truth terrain model, or None for flat ground at the origin altitude."""
@@ -280,6 +297,11 @@ class TickWorldView:
 
     def imagery_for(self, bounds_ne_m, gsd_m: float):
         return self.world.imagery_for(bounds_ne_m, gsd_m)
+
+    def clouds(self):
+        """The cloud sheet now (world.clouds.CloudView), or None under a clear sky."""
+        layer = self.world.cloud_layer()
+        return None if layer is None else layer.at(self.t_s)
 
     def elevation_for(self, bounds_ne_m):
         return self.world.elevation_for(bounds_ne_m)

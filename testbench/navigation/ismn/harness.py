@@ -60,6 +60,7 @@ def build(scenario_path: str, overrides=(), pipeline_over: dict | None = None, m
     from testbench.config.loader import load_scenario
     from testbench.core.interfaces import BuildContext
     from testbench.core.registry import build as build_component
+    from testbench.core.rng import RngStreams
     from testbench.navigation.ismn import IsmnParams, IsmnPipeline
     from testbench.sensors.camera.sensor import CameraSensor
     from testbench.sim.runner import origin_of
@@ -67,7 +68,9 @@ def build(scenario_path: str, overrides=(), pipeline_over: dict | None = None, m
 
     loaded = load_scenario(scenario_path, list(overrides))
     scn = loaded.scenario
-    world = RunWorld(scn.world, origin_of(loaded))
+    # The scenario seed's streams draw what the world draws per run (clouds, anomaly): those
+    # of a `testbench run` at that seed, not of a Monte Carlo run's own seed sequence.
+    world = RunWorld(scn.world, origin_of(loaded), streams=RngStreams(scn.seed))
     veh = scn.vehicles[0]
     aid = next(a for a in veh.aids if a.type == "ismn")
     ap = dict(aid.params)
@@ -89,8 +92,11 @@ def frame_for(sensor, world, row, frames_dir: str | None, seed: int = 0) -> np.n
         cached = cv2.imread(path, cv2.IMREAD_GRAYSCALE)
         if cached is not None:
             return cached
+    from testbench.sim.world_runtime import TickWorldView
+
     rng = np.random.default_rng([seed, int(round(row.t_s * 1000))])
-    fr = sensor.measure(truth_of(row), world, rng)
+    # The world as at the frame's time (its clouds have moved), without other vehicles.
+    fr = sensor.measure(truth_of(row), TickWorldView(world, float(row.t_s), "", {}), rng)
     grey = cv2.cvtColor(fr.image, cv2.COLOR_RGB2GRAY)
     if path:
         # Written aside and renamed: another replay sharing the cache never reads half a file.

@@ -18,6 +18,7 @@ import numpy as np
 
 from testbench.core.camera_geometry import CameraMount, PinholeCamera, camera_pose_ned
 from testbench.core.obstacles import Obstacle
+from testbench.sensors.camera.clouds import blend_clouds, cloud_alpha
 from testbench.sensors.camera.effects import apply_effects
 from testbench.sensors.camera.flat import render_plane
 from testbench.sensors.camera.lens import distortion_remap, normalized_grid, roi_camera
@@ -82,7 +83,8 @@ def render(camera: PinholeCamera, mount: CameraMount, pos_ned_m, R_nb, imagery: 
            elevation: LocalRaster | None = None, *, vehicles: Sequence[VehicleAppearance] = (),
            rng: np.random.Generator | None = None, want_ground_points: bool = False,
            roi: tuple[int, int, int, int] | None = None,
-           options: RenderOptions = _DEFAULT_OPTIONS, obstacles: Sequence[Obstacle] = ()) -> RenderedFrame:
+           options: RenderOptions = _DEFAULT_OPTIONS, obstacles: Sequence[Obstacle] = (),
+           clouds=None) -> RenderedFrame:
     """Render what `camera`, mounted by `mount` on a vehicle at pos_ned_m (3,) NED m with
     attitude R_nb (3, 3, body->NED), sees of `imagery` over `elevation` (None: flat ground at
     options.ground_height_m).
@@ -92,7 +94,9 @@ def render(camera: PinholeCamera, mount: CameraMount, pos_ned_m, R_nb, imagery: 
     roi: (u0, v0, u1, v1) full-frame pixel box to render (u1, v1 exclusive), for detectors
     that look around predicted tracks; obstacles: the world's boxes (core.obstacles), drawn
     over the ground and hiding the vehicles behind them, their pixels neither `valid` nor
-    `sky`. Returns a RenderedFrame; parts of the view that the map does not cover are black,
+    `sky`; clouds: the world's cloud sheet at this instant (world.clouds.CloudView, None:
+    clear), drawn over the ground, sky and obstacles beyond it; a vehicle beyond it is hidden
+    where it takes half the light or more (else drawn whole). Returns a RenderedFrame; parts of the view that the map does not cover are black,
     masked out of `valid` and counted in `offmap_fraction`.
     """
     roi_box = _check_roi(camera, roi)
@@ -125,6 +129,18 @@ def render(camera: PinholeCamera, mount: CameraMount, pos_ned_m, R_nb, imagery: 
         valid, sky = valid & ~covered, sky & ~covered
         if points is not None:
             points[covered] = np.nan
+    cloud_fraction = 0.0
+    if clouds is not None and not clouds.clear:
+        if elevation is None:
+            depth_fn = None
+        else:
+            def depth_fn(cols: np.ndarray, rows: np.ndarray) -> np.ndarray:  # region px -> camera depth m
+                return t2[np.minimum(np.round(rows / k).astype(int), t2.shape[0] - 1),
+                          np.minimum(np.round(cols / k).astype(int), t2.shape[1] - 1)]
+        cover = cloud_alpha(cam, C, R_nc, clouds, depth_fn, -float(options.ground_height_m))
+        if cover is not None:
+            blend_clouds(rgb, cover[0], cover[1], bool(C[2] < clouds.down_m))
+            cloud_fraction = float(np.count_nonzero(cover[0] >= 0.5)) / cover[0].size
     truths = ()
     if vehicles:
         def ground_depth(u: float, v: float) -> float:  # full-frame pixel -> region pixel
@@ -133,10 +149,11 @@ def render(camera: PinholeCamera, mount: CameraMount, pos_ned_m, R_nb, imagery: 
             return ground_depth_roi(ur, vr)
 
         truths = draw_vehicles(rgb, camera, (u0, v0), C, R_nc, vehicles, options.near_m,
-                               options.far_m, ground_depth, obstacles)
+                               options.far_m, ground_depth, obstacles,
+                               None if clouds is None or clouds.clear else clouds.hides)
     rgb = apply_effects(rgb, cam, options, rng)
     # Off-map share: pixels neither sky nor ground with data nor an obstacle (valid and sky
     # never overlap).
     seen = valid | sky if covered is None else valid | sky | covered
     offmap = 0.0 if complete else 1.0 - float(np.count_nonzero(seen)) / valid.size
-    return RenderedFrame(rgb, valid, sky, offmap, truths, None if roi is None else roi_box, points)
+    return RenderedFrame(rgb, valid, sky, offmap, truths, None if roi is None else roi_box, points, cloud_fraction)

@@ -54,6 +54,9 @@ class CameraWorld(Protocol):
     def render_requests(self, camera_name: str) -> list[tuple[int, int, int, int]] | None:
         """Regions to render for this camera (None: the whole frame; []: nothing)."""
 
+    def clouds(self):
+        """The cloud sheet now (world.clouds.CloudView), None under a clear sky (optional)."""
+
 
 @dataclass(frozen=True)
 class CameraFrame:
@@ -65,7 +68,9 @@ class CameraFrame:
     offmap_fraction: share of the rendered pixels that look at ground off the map (no-data);
     camera, mount: the camera model (K, distortion) and the mounting as calibrated (R_bc
     camera->body, lever arm: CameraSensor.mount, not the true one when the camera has a
-    boresight error), which is what navigation may use.
+    boresight error), which is what navigation may use; cloud_fraction: share of the rendered
+    pixels a cloud takes half the light of or more (truth, for scoring alone, as
+    offmap_fraction).
     """
 
     t_s: float
@@ -76,6 +81,7 @@ class CameraFrame:
     offmap_fraction: float
     camera: PinholeCamera | None = None
     mount: CameraMount | None = None
+    cloud_fraction: float = 0.0
 
 
 class CameraParams(ParamsModel):
@@ -206,35 +212,39 @@ class CameraSensor(Sensor):
         if self.params.exposure_s > 0.0:
             opts = _with_motion_blur(opts, self.camera, R_nc, truth, self.params.exposure_s)
         obstacles = tuple(getattr(world, "obstacles", ()) or ())
+        clouds = world.clouds() if hasattr(world, "clouds") else None
         rois = [None] if requests is None else list(requests)
         parts = []
         for roi in rois:
             full = roi is not None and tuple(roi) == (0, 0, self.camera.width_px, self.camera.height_px)
             parts.append(render(self.camera, self.true_mount, pos, R_nb, imagery, elevation, vehicles=vehicles, rng=rng,
-                                roi=None if full else roi, options=opts, obstacles=obstacles))
+                                roi=None if full else roi, options=opts, obstacles=obstacles, clouds=clouds))
         whole = next((p for p in parts if p.roi is None), None)
         truths = _merge_truths(parts)
         n_px = sum(p.valid.size for p in parts)
         offmap = sum(p.offmap_fraction * p.valid.size for p in parts) / max(n_px, 1)
+        clouded = sum(p.cloud_fraction * p.valid.size for p in parts) / max(n_px, 1)
         if offmap > 0.5 and not self._warned_offmap:
             log.warning("camera %s at t=%.1f s: %.0f %% of the view is off the map (no-data, drawn black; a camera far_m "
                         "short of the map's edge draws haze and sky there instead, or use a larger map)",
                         self.name, truth.t_s, 100 * offmap)
             self._warned_offmap = True
         return CameraFrame(truth.t_s, self.name, None if whole is None else whole.image, tuple(parts), truths, offmap,
-                           self.camera, self.mount)
+                           self.camera, self.mount, clouded)
 
     def _annotations_only(self, truth: TruthState, world: Any, centre: np.ndarray, R_nc: np.ndarray, requests) -> CameraFrame:
         """A frame without pixels: zero-stride black images of the requested regions, with the
-        truth of the other vehicles (projected, nothing drawn; hidden by obstacles, not by
-        terrain)."""
+        truth of the other vehicles (projected, nothing drawn; hidden by obstacles and clouds,
+        not by terrain)."""
         cam = self.camera
         vehicles = tuple(world.appearances(truth.t_s)) if self.params.render_vehicles and hasattr(world, "appearances") else ()
         scratch = np.zeros((1, 1, 3), np.uint8)
         far = (-(10**7), -(10**7))  # the scratch region lies off every vehicle: nothing is drawn
         obstacles = tuple(getattr(world, "obstacles", ()) or ())
+        clouds = world.clouds() if hasattr(world, "clouds") else None
+        hidden_by = None if clouds is None or clouds.clear else clouds.hides
         truths = draw_vehicles(scratch, cam, far, centre, R_nc, vehicles, self.params.near_m, self.params.far_m, None,
-                               obstacles) if vehicles else ()
+                               obstacles, hidden_by) if vehicles else ()
         parts = []
         for roi in [None] if requests is None else list(requests):
             box = (0, 0, cam.width_px, cam.height_px) if roi is None else tuple(int(x) for x in roi)

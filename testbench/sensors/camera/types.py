@@ -104,8 +104,10 @@ class RenderedFrame:
     the frame's pixels that show ground the map does not cover (no-data, drawn black);
     vehicles: truth of the other vehicles; roi: (u0, v0, u1, v1) of the rendered region in the
     full frame (the whole frame when None); ground_points_ned_m (h, w, 3) NED of each pixel's
-    ground point (nan where sky), only when asked for. The masks are read-only (frames that
-    are all ground share one constant pair): copy them to modify.
+    ground point (nan where sky), only when asked for; cloud_fraction: share of the pixels
+    whose ray a cloud takes half the light of or more (truth, for scoring: nothing in the
+    pixels says which they are). The masks are read-only (frames that are all ground share
+    one constant pair): copy them to modify.
     """
 
     image: np.ndarray
@@ -115,3 +117,4 @@ class RenderedFrame:
     vehicles: tuple[VehicleTruth, ...] = ()
     roi: tuple[int, int, int, int] | None = None
     ground_points_ned_m: np.ndarray | None = field(default=None, repr=False)
+    cloud_fraction: float = 0.0

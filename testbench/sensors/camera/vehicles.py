@@ -244,13 +244,16 @@ def _project_frame(camera: PinholeCamera, C: np.ndarray, R_nc: np.ndarray,
 def draw_vehicles(img: np.ndarray, camera: PinholeCamera, roi_origin: tuple[int, int],
                   centre_ned_m, R_nc, vehicles: Sequence[VehicleAppearance], near_m: float,
                   far_m: float, ground_depth: Callable[[float, float], float] | None,
-                  obstacles: Sequence = ()) -> tuple[VehicleTruth, ...]:
+                  obstacles: Sequence = (),
+                  hidden_by: Callable[[np.ndarray, np.ndarray], bool] | None = None) -> tuple[VehicleTruth, ...]:
     """Draw `vehicles` into `img` (the rendered region, top-left at full-frame pixel
     roi_origin) and return their truth in full-frame pixel coordinates (arrays read-only).
 
     camera: the full-frame camera; ground_depth(u, v): camera depth of the terrain seen at a
     full-frame pixel (inf where sky), used to hide vehicles behind terrain; obstacles: boxes
-    (core.obstacles.Obstacle) that hide the vehicles whose centre they stand in front of.
+    (core.obstacles.Obstacle) that hide the vehicles whose centre they stand in front of;
+    hidden_by(camera centre, vehicle position), NED m: True where something else lies between
+    them (a cloud: world.clouds.CloudView.hides).
     Vehicles whose projection misses the rendered region get their truth but are not drawn.
     """
     if not vehicles:
@@ -268,6 +271,8 @@ def draw_vehicles(img: np.ndarray, camera: PinholeCamera, roi_origin: tuple[int,
                 tr = replace(tr, visible=False)  # behind the terrain
         if tr.visible and obstacles and first_hit(pr.C, veh.pos_ned_m, obstacles) is not None:
             tr = replace(tr, visible=False)  # behind an obstacle
+        if tr.visible and hidden_by is not None and hidden_by(pr.C, np.asarray(veh.pos_ned_m, float)):
+            tr = replace(tr, visible=False)  # behind a cloud
         truths.append(tr)
         if not tr.visible:
             continue

@@ -1,0 +1,89 @@
+"""Clouds in the camera (sensors/camera/clouds.py): where each ray meets the sheet, what it
+shows there, and what it hides."""
+
+from __future__ import annotations
+
+import numpy as np
+from conftest import mount, raster, textured
+
+from testbench.core.camera_geometry import PinholeCamera, camera_pose_ned
+from testbench.core.rotations import euler_to_dcm
+from testbench.sensors.camera import RenderOptions, VehicleAppearance, render
+from testbench.sensors.camera.clouds import TOP_RGB
+from testbench.sensors.camera.lens import undistort_pixels
+from testbench.world.clouds import CloudLayer
+
+NO_HAZE = RenderOptions(haze_visibility_m=None)
+CAM = PinholeCamera.from_hfov(480, 360, 90.0, (-0.12, 0.03, 0.0, 0.0, 0.0))
+POS = np.array([0.0, 0.0, -800.0])  # 800 m above flat ground at the origin's altitude
+
+
+def _clouds(coverage, t_s=0.0, base_m=500.0, seed=4, cell_m=150.0):
+    return CloudLayer(base_m, coverage, (), cell_m, 1.0, (0.0, 0.0), np.random.default_rng(seed)).at(t_s)
+
+
+def _ground():
+    return raster(textured(512, seed=1), 4.0)
+
+
+def test_a_clear_sky_leaves_the_frame_as_it_was():
+    bare = render(CAM, mount(-90.0), POS, np.eye(3), _ground(), options=NO_HAZE)
+    clear = render(CAM, mount(-90.0), POS, np.eye(3), _ground(), options=NO_HAZE, clouds=_clouds(0.0))
+    assert np.array_equal(bare.image, clear.image) and clear.cloud_fraction == 0.0
+
+
+def test_an_overcast_sheet_shows_nothing_but_cloud_tops():
+    f = render(CAM, mount(-90.0), POS, np.eye(3), _ground(), options=NO_HAZE, clouds=_clouds(1.0))
+    assert f.cloud_fraction == 1.0
+    assert np.abs(f.image.astype(float) - TOP_RGB).max() <= 1.0
+    assert f.valid.all()  # the camera cannot tell: nothing marks the pixels as cloud
+
+
+def test_each_ray_takes_the_cloud_where_it_meets_the_sheet():
+    """Over black ground, an oblique and rolled camera with a distorting lens: the alpha read
+    back from each pixel is the density at the point where that pixel's ray crosses the sheet
+    (the renderer samples every 8 px, so away from the clouds' edges)."""
+    black = raster(np.zeros((600, 600, 3), np.uint8), 8.0)
+    R_nb = euler_to_dcm(np.radians([8.0, -5.0, 30.0]))
+    view = _clouds(0.45, cell_m=400.0)
+    f = render(CAM, mount(-60.0), POS, R_nb, black, options=NO_HAZE, clouds=view)
+    C, R_nc = camera_pose_ned(POS, R_nb, mount(-60.0))
+    v, u = np.mgrid[5:CAM.height_px:11, 5:CAM.width_px:11]
+    x, y = undistort_pixels(CAM, u.astype(float), v.astype(float))
+    d = np.stack([x, y, np.ones_like(x)], axis=-1) @ R_nc.T
+    t = (view.down_m - C[2]) / d[..., 2]
+    north, east = C[0] + t * d[..., 0], C[1] + t * d[..., 1]
+    density = view.density(north, east)
+    seen = f.image[v, u, 1].astype(float) / (TOP_RGB[1] * 0.8)  # alpha x shade; fringes 0.8
+    # Firm: clear or opaque over 25 m around (the sampling's 8 px span up to 17 m of the sheet).
+    around = [view.density(north + dn, east + de) for dn, de in ((25, 0), (-25, 0), (0, 25), (0, -25))]
+    firm = np.all([a == density for a in around], axis=0) & ((density == 0.0) | (density == 1.0))
+    assert firm.sum() > 200 and 0.2 < density[firm].mean() < 0.8
+    assert np.all((seen[firm] > 0.5) == (density[firm] == 1.0))
+    assert abs(f.cloud_fraction - float(np.mean(density >= 0.5))) < 0.05
+
+
+def test_from_below_the_sheet_hides_the_sky_not_the_ground():
+    level = mount(0.0)  # looking north, level, 300 m up: the sheet 500 m up fills the upper half
+    low = np.array([0.0, 0.0, -300.0])
+    bare = render(CAM, level, low, np.eye(3), _ground(), options=NO_HAZE)
+    f = render(CAM, level, low, np.eye(3), _ground(), options=NO_HAZE, clouds=_clouds(1.0))
+    assert np.array_equal(f.image[bare.valid], bare.image[bare.valid])
+    top = f.image[: CAM.height_px // 4].reshape(-1, 3).mean(axis=0)
+    assert np.all(top < TOP_RGB - 50) and not np.array_equal(f.image[bare.sky], bare.image[bare.sky])
+
+
+def _quad(pos):
+    return VehicleAppearance("q1", np.array(pos, float), np.eye(3), shape="quad", size_m=4.0,
+                             colour_rgb=(200, 60, 40), led_positions_b_m=((0.0, 0.0, -0.1),),
+                             led_colours=((255, 0, 0),), led_on=(True,), led_radius_m=0.5)
+
+
+def test_a_vehicle_beyond_the_cloud_is_hidden_one_before_it_is_not():
+    below, above = _quad((0.0, 0.0, -200.0)), _quad((0.0, 0.0, -650.0))  # the sheet at 500 m up
+    f = render(CAM, mount(-90.0), POS, np.eye(3), _ground(), vehicles=(below, above), options=NO_HAZE,
+               clouds=_clouds(1.0))
+    assert [t.visible for t in f.vehicles] == [False, True]
+    clear = render(CAM, mount(-90.0), POS, np.eye(3), _ground(), vehicles=(below, above), options=NO_HAZE,
+                   clouds=_clouds(0.0))
+    assert [t.visible for t in clear.vehicles] == [True, True]
