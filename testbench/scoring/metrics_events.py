@@ -14,6 +14,7 @@ from testbench.scoring.phases import event_turning
 from testbench.scoring.record_io import RunRecord, column, has_columns
 from testbench.scoring.result import (
     FormationMetrics,
+    IsmnClouds,
     IsmnMetrics,
     IsmnPhase,
     RelnavMetrics,
@@ -76,6 +77,40 @@ def compute_ismn(record: RunRecord) -> IsmnMetrics | None:
         all=_ismn_phase(eh, pct, fix),
         smooth=_ismn_phase(eh, pct, fix & ~turning),
         turning=_ismn_phase(eh, pct, fix & turning),
+        longest_gap_s=longest_gap_s(column(ismn, "t_s"), attempted, accepted),
+        clouds=_ismn_clouds(ismn, attempted, fix, accepted, eh),
+    )
+
+
+CLOUDED_FRACTION = 0.5
+OVERCAST_FRACTION = 0.95
+
+
+def longest_gap_s(t_s: np.ndarray, attempted: np.ndarray, accepted: np.ndarray) -> float | None:
+    """The longest time (s) between two accepted fixes, or from the last accepted fix to the
+    last attempt, from the first accepted fix on; None without an accepted fix. t_s,
+    attempted, accepted: (n,) per row, in time order."""
+    t_acc = t_s[accepted]
+    if t_acc.size == 0:
+        return None
+    ends = np.append(t_acc, t_s[attempted].max())
+    return float(np.max(np.diff(ends))) if ends.size > 1 else 0.0
+
+
+def _ismn_clouds(ismn: pd.DataFrame, attempted: np.ndarray, fix: np.ndarray, accepted: np.ndarray,
+                 eh: np.ndarray) -> IsmnClouds | None:
+    """IsmnClouds, or None where no frame met a cloud (or the record predates clouds)."""
+    if "truth_cloud_fraction" not in ismn.columns:
+        return None
+    share = column(ismn, "truth_cloud_fraction")
+    if not np.any(share[attempted] > 0.0):
+        return None
+    clouded = attempted & (share >= CLOUDED_FRACTION)
+    overcast = attempted & (share >= OVERCAST_FRACTION)
+    return IsmnClouds(
+        attempts=int(clouded.sum()), fixes=int((fix & clouded).sum()), accepted=int((accepted & clouded).sum()),
+        overcast_attempts=int(overcast.sum()), overcast_accepted=int((accepted & overcast).sum()),
+        horizontal_error_m=error_stats(eh[fix & clouded]) if np.any(fix & clouded) else None,
     )
 
 

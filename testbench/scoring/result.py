@@ -193,11 +193,31 @@ class IsmnPhase(_Section):
 
 
 @dataclass(frozen=True)
+class IsmnClouds(_Section):
+    """Scene matching under the world's clouds (the frames' truth_cloud_fraction).
+
+    attempts / fixes / accepted: over the frames that clouds covered half of or more;
+    horizontal_error_m: error of the fixes made from those frames; overcast_attempts /
+    overcast_accepted: over the frames clouds covered 95 % of or more, where nothing of the
+    ground is left to match (a fix the filter takes from one is a false fix)."""
+
+    attempts: int
+    fixes: int
+    accepted: int
+    overcast_attempts: int
+    overcast_accepted: int
+    horizontal_error_m: ErrorStats | None = None
+
+
+@dataclass(frozen=True)
 class IsmnMetrics(_Section):
     """Inertial-aided scene matching.
 
     fix_rate = fixes / attempts; accept_rate = fixes accepted by the filter / fixes;
-    latency_ms: per attempt; all / smooth / turning: error of the produced fixes.
+    latency_ms: per attempt; all / smooth / turning: error of the produced fixes;
+    longest_gap_s: the longest time between two accepted fixes, or from the last one to the
+    last attempt (s; from the first accepted fix on); clouds: the frames under cloud (only
+    where the world has clouds).
     """
 
     attempts: int
@@ -209,6 +229,8 @@ class IsmnMetrics(_Section):
     all: IsmnPhase | None = None
     smooth: IsmnPhase | None = None
     turning: IsmnPhase | None = None
+    longest_gap_s: float | None = None
+    clouds: IsmnClouds | None = None
 
 
 @dataclass(frozen=True)

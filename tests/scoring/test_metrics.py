@@ -183,6 +183,25 @@ def test_ismn_rates_and_phases():
     assert m.turning.horizontal_error_pct_agl.mean == pytest.approx(50.0)
 
 
+def test_ismn_longest_gap_and_clouds():
+    table = _ismn_table()
+    rec = record_of(straight_telemetry(n=100), {"ismn": table})
+    m = score_record(rec, metrics=[]).ismn
+    # Accepted at 1, 3, 5 s, the last attempt at 5 s: the longest gap 2 s. No cloud column.
+    assert m.longest_gap_s == pytest.approx(2.0) and m.clouds is None
+    table["accepted"] = [True, False, False, False, False]
+    assert score_record(record_of(straight_telemetry(n=100), {"ismn": table}), metrics=[]).ismn.longest_gap_s == 4.0
+    table["accepted"] = [True, False, True, False, True]
+    table["truth_cloud_fraction"] = [0.0, 0.6, 0.97, 1.0, 0.2]
+    m = score_record(record_of(straight_telemetry(n=100), {"ismn": table}), metrics=[]).ismn
+    c = m.clouds
+    # Clouded (>= 0.5): rows 2-4, fixes at 2 and 3 s, accepted at 3 s; overcast (>= 0.95): 3, 4 s.
+    assert (c.attempts, c.fixes, c.accepted, c.overcast_attempts, c.overcast_accepted) == (3, 2, 1, 2, 1)
+    assert c.horizontal_error_m.max == pytest.approx(0.0) and c.horizontal_error_m.n == 2
+    table["truth_cloud_fraction"] = 0.0
+    assert score_record(record_of(straight_telemetry(n=100), {"ismn": table}), metrics=[]).ismn.clouds is None
+
+
 def test_relnav_and_formation_and_vehicles():
     tel = pd.concat([straight_telemetry(n=20, vehicle_id="a"), straight_telemetry(n=20, vehicle_id="b")]).sort_values("t_s", kind="stable")
     rel = pd.DataFrame({"t_s": [0.0, 0.0, 1.0], "vehicle_id": ["a", "b", "a"], "peer_id": ["b", "a", "b"],
