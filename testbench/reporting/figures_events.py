@@ -97,6 +97,7 @@ def ismn_fix_figure(record: RunRecord) -> FigureItem | None:
     ax.set_ylabel("fix horizontal error (m)")
     ax.grid(True, alpha=0.3)
     legend_or_note(ax, _no_fix_note(ismn), fontsize=7)
+    clouded = _cloud_share_axis(ax, ismn)
     v = lat[np.isfinite(lat)]
     if v.size:
         axh.hist(v, bins=min(40, max(5, v.size // 5)), color="C2", alpha=0.8)
@@ -105,12 +106,31 @@ def ismn_fix_figure(record: RunRecord) -> FigureItem | None:
         axh.legend(fontsize=7)
     axh.set_xlabel("matching latency (ms)")
     axh.set_ylabel("attempts")
+    clouds_note = (" Grey: the share of the ground in the camera's view that clouds hide (truth), right axis."
+                   if clouded else "")
     return FigureItem(
         "Scene-matching fixes and latency",
-        "Left: horizontal error of each produced fix against truth (o accepted by the filter, x rejected). "
-        "Right: histogram of the matching latency per attempt.",
+        "Left: horizontal error of each produced fix against truth (o accepted by the filter, x rejected)."
+        f"{clouds_note} Right: histogram of the matching latency per attempt.",
         fig,
     )
+
+
+def _cloud_share_axis(ax, ismn: pd.DataFrame) -> bool:
+    """Each frame's truth cloud share on a right-hand axis of ax, where the world has clouds;
+    whether it drew one."""
+    if "truth_cloud_fraction" not in ismn.columns:
+        return False
+    share = column(ismn, "truth_cloud_fraction")
+    if not np.any(share > 0.0):
+        return False
+    axc = ax.twinx()
+    axc.fill_between(column(ismn, "t_s"), 100.0 * share, step="mid", color="0.6", alpha=0.3, lw=0)
+    axc.set_ylim(0.0, 100.0)
+    axc.set_ylabel("ground hidden by cloud (%)", color="0.4")
+    ax.set_zorder(axc.get_zorder() + 1)  # the fixes over the grey, not under it
+    ax.patch.set_visible(False)
+    return True
 
 
 def relnav_figure(record: RunRecord) -> FigureItem | None:

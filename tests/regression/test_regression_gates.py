@@ -51,6 +51,7 @@ GATED = {
     "paper_ismn_spoofed": 120.0,
     "paper_ismn_anomaly": 120.0,
     "paper_ismn_boresight": 120.0,
+    "paper_ismn_clouds": 120.0,
     "ins_spoofed_800m": 120.0,
     "naip_ismn_800m": 120.0,
     "lowalt_ismn_150m": 120.0,

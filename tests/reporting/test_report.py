@@ -150,6 +150,24 @@ def test_empty_panels_say_why_and_warn_nothing(tmp_path):
     assert 'id="ismn"' in html
 
 
+def test_the_fix_panel_shows_the_cloud_share_where_the_world_had_clouds(tmp_path):
+    import pandas as pd
+
+    from testbench.reporting.figures_events import ismn_fix_figure
+    from testbench.scoring.record_io import load_run
+
+    d = make_synthetic_run(tmp_path, np.random.default_rng(3), n_vehicles=1, duration_s=20.0, rate_hz=5.0,
+                           with_images=False)
+    assert len(ismn_fix_figure(load_run(d)).figure.axes) == 2  # errors, latency
+    path = d / "events" / "ismn.parquet"
+    ismn = pd.read_parquet(path)
+    ismn["truth_cloud_fraction"] = np.linspace(0.0, 1.0, len(ismn))
+    ismn.to_parquet(path)
+    item = ismn_fix_figure(load_run(d))
+    assert len(item.figure.axes) == 3 and "clouds hide" in item.caption
+    assert item.figure.axes[-1].get_ylabel() == "ground hidden by cloud (%)"
+
+
 def test_gnss_sky_figure_and_summary_where_a_receiver_had_a_sky_model(tmp_path):
     """A record with events/gnss_sky.parquet gets the satellites-in-view figure and the
     nav.gnss_sky figures in its summary; one without has neither."""

@@ -140,7 +140,8 @@ def render(camera: PinholeCamera, mount: CameraMount, pos_ned_m, R_nb, imagery: 
         cover = cloud_alpha(cam, C, R_nc, clouds, depth_fn, -float(options.ground_height_m))
         if cover is not None:
             blend_clouds(rgb, cover[0], cover[1], bool(C[2] < clouds.down_m))
-            cloud_fraction = float(np.count_nonzero(cover[0] >= 0.5)) / cover[0].size
+            ground = ~sky  # the share of the ground in view (and of what hides it) that the clouds hide
+            cloud_fraction = float(np.count_nonzero((cover[0] >= 0.5) & ground)) / max(int(np.count_nonzero(ground)), 1)
     truths = ()
     if vehicles:
         def ground_depth(u: float, v: float) -> float:  # full-frame pixel -> region pixel

@@ -69,8 +69,8 @@ class CameraFrame:
     camera, mount: the camera model (K, distortion) and the mounting as calibrated (R_bc
     camera->body, lever arm: CameraSensor.mount, not the true one when the camera has a
     boresight error), which is what navigation may use; cloud_fraction: share of the rendered
-    pixels a cloud takes half the light of or more (truth, for scoring alone, as
-    offmap_fraction).
+    pixels looking at the ground that a cloud takes half the light of or more (truth, for
+    scoring alone, as offmap_fraction).
     """
 
     t_s: float
@@ -223,7 +223,8 @@ class CameraSensor(Sensor):
         truths = _merge_truths(parts)
         n_px = sum(p.valid.size for p in parts)
         offmap = sum(p.offmap_fraction * p.valid.size for p in parts) / max(n_px, 1)
-        clouded = sum(p.cloud_fraction * p.valid.size for p in parts) / max(n_px, 1)
+        n_ground = [int(p.valid.size - np.count_nonzero(p.sky)) for p in parts]
+        clouded = sum(p.cloud_fraction * n for p, n in zip(parts, n_ground)) / max(sum(n_ground), 1)
         if offmap > 0.5 and not self._warned_offmap:
             log.warning("camera %s at t=%.1f s: %.0f %% of the view is off the map (no-data, drawn black; a camera far_m "
                         "short of the map's edge draws haze and sky there instead, or use a larger map)",

@@ -105,8 +105,8 @@ class RenderedFrame:
     vehicles: truth of the other vehicles; roi: (u0, v0, u1, v1) of the rendered region in the
     full frame (the whole frame when None); ground_points_ned_m (h, w, 3) NED of each pixel's
     ground point (nan where sky), only when asked for; cloud_fraction: share of the pixels
-    whose ray a cloud takes half the light of or more (truth, for scoring: nothing in the
-    pixels says which they are). The masks are read-only (frames that are all ground share
+    that look at the ground (not sky) whose ray a cloud takes half the light of or more
+    (truth, for scoring: nothing in the pixels says which they are). The masks are read-only (frames that are all ground share
     one constant pair): copy them to modify.
     """
 

@@ -71,6 +71,7 @@ def test_from_below_the_sheet_hides_the_sky_not_the_ground():
     assert np.array_equal(f.image[bare.valid], bare.image[bare.valid])
     top = f.image[: CAM.height_px // 4].reshape(-1, 3).mean(axis=0)
     assert np.all(top < TOP_RGB - 50) and not np.array_equal(f.image[bare.sky], bare.image[bare.sky])
+    assert f.cloud_fraction == 0.0  # the share of the ground hidden: none of it
 
 
 def _quad(pos):
