@@ -59,10 +59,12 @@ class Orthorectifier:
         return np.array([[cam.fx * sx, 0, (cam.cx + 0.5) * sx - 0.5],
                          [0, cam.fy * sy, (cam.cy + 0.5) * sy - 0.5], [0, 0, 1.0]])
 
-    def prepare(self, frame: np.ndarray, scale: float) -> tuple[np.ndarray, np.ndarray]:
+    def prepare(self, frame: np.ndarray, scale: float, nodata: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Grey, downsampled (INTER_AREA, anti-aliased) and undistorted frame plus its K.
 
-        Grey levels are clipped to >= 1 so that 0 marks "outside the frame" after warping.
+        Grey levels are clipped to >= 1 so that 0 marks "outside the frame" after warping;
+        nodata (H, W) bool marks frame pixels to treat so as well (clouds: ismn.cloud_mask),
+        and a reduced pixel that covers any of them is 0.
         """
         grey = to_grey_u8(frame)
         cam = self.camera
@@ -84,6 +86,13 @@ class Orthorectifier:
             small = cv2.max(small, 1)  # a new array: the caller's frame is left as it was
         else:
             np.maximum(small, 1, out=small)
+        if nodata is not None and nodata.any():
+            m = nodata.view(np.uint8) * np.uint8(255)
+            if m.shape != small.shape:
+                m = cv2.resize(m, (w, h), interpolation=cv2.INTER_AREA)  # > 0 where any masked pixel fell
+            if cam.has_distortion:
+                m = cv2.remap(m, maps[0], maps[1], cv2.INTER_NEAREST, borderValue=0)
+            small[m > 0] = 0
         return small, K_s
 
     def rectify(

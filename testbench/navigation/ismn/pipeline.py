@@ -29,6 +29,7 @@ from testbench.navigation.fix_quality import appearance_gain
 from testbench.navigation.ismn.area import NccMatcher
 from testbench.navigation.ismn.mapcache import MapWindowCache, quantise_gsd
 from testbench.navigation.ismn.geometry import estimate_pose, footprint_bounds, nadir_gsd_m, predict_search_window
+from testbench.navigation.ismn.cloud_mask import CloudMaskParams, cloud_mask
 from testbench.navigation.ismn.ortho import Orthorectifier, to_grey_u8
 from testbench.navigation.ismn.pose import image_heading, solve_camera_pose
 from testbench.navigation.ismn.types import IsmnDiagnostics, MatchPrior
@@ -104,6 +105,13 @@ class IsmnParams(ParamsModel):
     fixes then err by more than they claim (paper_ismn_800m, 20 runs: error/claim 0.94 at a
     heading sigma of 2-3 mrad, 0.66 below 1.5 mrad, i.e. while the magnetometer settles the
     cold-start heading). A vehicle can wait for its heading before it trusts scene matching."""
+    cloud_mask: CloudMaskParams | None = None
+    """Mask the frame's clouds before matching, found from the pixels alone (bright and grey,
+    grown by a margin: ismn.cloud_mask), and try no match where they hide more than
+    cloud_mask.max_share of it; None: match every pixel. On this project's rendered clouds the
+    tiles' homography consensus already refuses most cloud edges: six paired 200 s flights under
+    70 % cover (paper_ismn_clouds) gained nothing significant from it (docs/measurements.md,
+    "Scene matching under clouds"); it is there for clouds whose edges a matcher takes."""
     max_jump_factor: float = 1.5  # reject fixes farther from the estimate than this x window margin
     thumb_px: int = 320  # width of the frame thumbnail kept in the diagnostics
     keep_images: bool = True  # keep ortho / map window / thumbnail in the diagnostics
@@ -257,7 +265,14 @@ class IsmnPipeline:
         if Ho < 16 or Wo < 16 or cv2.countNonZero(np.asarray(mapw.valid, bool).view(np.uint8)) < 0.05 * mapw.valid.size:
             return fail("search window off the reference map", window=win)
 
-        small, K_s = self.ortho.prepare(frame_image, nadir_gsd_m(self.camera, height) / g)
+        nodata = None
+        if p.cloud_mask is not None:
+            nodata = cloud_mask(frame_image, p.cloud_mask)
+            share = float(np.count_nonzero(nodata)) / nodata.size
+            if share > p.cloud_mask.max_share:
+                lat["ortho"] = 1e3 * (time.perf_counter() - t1)
+                return fail(f"clouds hide {100 * share:.0f} % of the frame", window=win)
+        small, K_s = self.ortho.prepare(frame_image, nadir_gsd_m(self.camera, height) / g, nodata)
         of = self.ortho.rectify(small, K_s, centre, R_nc, mapw.north0_m - r0 * g, mapw.east0_m + c0 * g, g,
                                 (Ho, Wo), (c0, r0), ground_down, height_fn)
         t2 = time.perf_counter()
