@@ -5,9 +5,9 @@ It wraps `ismn.IsmnPipeline` for the engine: it takes the camera's intrinsics an
 the camera sensor, the reference map and elevation the vehicle carries (never the imagery the
 camera renders, unless the scenario says so and is labelled same-raster), and reports each
 attempt as a row of events/ismn.parquet. Truth columns of those rows are left as placeholders
-that the engine fills, but one: truth_cloud_fraction, the share of the frame under cloud, is
-copied from the renderer's frame (CameraFrame.cloud_fraction) for scoring; the pipeline is
-given the pixels alone.
+that the engine fills, but one: truth_cloud_fraction, the share of the ground in view that
+clouds hide, is copied from the renderer's frame (CameraFrame.cloud_fraction) for scoring;
+the pipeline is given the pixels alone.
 """
 
 from __future__ import annotations

@@ -122,9 +122,7 @@ class CloudView:
         period = _TILE_PX * lay.px_m
         rows = np.mod(n - lay.drift_ne_mps[0] * self.t_s, period) / lay.px_m
         cols = np.mod(e - lay.drift_ne_mps[1] * self.t_s, period) / lay.px_m
-        flat = (rows.size, 1) if rows.ndim != 2 else rows.shape
-        value = cv2.remap(lay.field, cols.reshape(flat).astype(np.float32), rows.reshape(flat).astype(np.float32),
-                          cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP).reshape(n.shape)
+        value = _sample_wrapped(lay.field, rows, cols).reshape(n.shape)
         above = value - np.float32(self._threshold)
         d = np.clip(0.5 + above / np.float32(2.0 * EDGE_SOFTNESS_SIGMA), 0.0, 1.0)
         return d.astype(np.float32, copy=False), np.clip(above, 0.0, 1.0).astype(np.float32, copy=False)
@@ -149,6 +147,18 @@ class CloudView:
         if ne is None or self.clear:
             return False
         return bool(self.alpha(ne[0], ne[1]) >= 0.5)
+
+
+def _sample_wrapped(field: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """(N,) bilinear samples of the periodic `field` at fractional (rows, cols), any shape
+    (N points), through cv2.remap, whose maps are at most 32767 a side: the points go in rows
+    of 1024."""
+    n = rows.size
+    width = 1024 if n > 1024 else max(n, 1)
+    pad = (-n) % width
+    r = np.pad(rows.ravel(), (0, pad)).astype(np.float32).reshape(-1, width)
+    c = np.pad(cols.ravel(), (0, pad)).astype(np.float32).reshape(-1, width)
+    return cv2.remap(field, c, r, cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP).ravel()[:n]
 
 
 def _von_karman_field(size_px: int, cell_px: float, rng: np.random.Generator) -> np.ndarray:

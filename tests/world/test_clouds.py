@@ -47,6 +47,10 @@ def test_the_field_repeats_at_its_period_and_holds_its_detail_far_out():
     near = view.density(n, e)
     assert np.allclose(view.density(n + 40 * period, e - 25 * period), near, atol=1e-4)
     assert 0.0 < near.mean() < 1.0 and np.ptp(near) == 1.0
+    # Any number of points (OpenCV's maps stop at 32767 a side), any shape, the same values.
+    many = np.linspace(0.0, 3000.0, 70001)
+    assert np.array_equal(view.density(many, np.full_like(many, 40.0))[::233], view.density(many[::233], np.full(301, 40.0)))
+    assert view.density(np.array(5.0), np.array(6.0)).shape == ()
 
 
 def test_the_clouds_move_with_their_drift():

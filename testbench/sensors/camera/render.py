@@ -96,8 +96,9 @@ def render(camera: PinholeCamera, mount: CameraMount, pos_ned_m, R_nb, imagery: 
     over the ground and hiding the vehicles behind them, their pixels neither `valid` nor
     `sky`; clouds: the world's cloud sheet at this instant (world.clouds.CloudView, None:
     clear), drawn over the ground, sky and obstacles beyond it; a vehicle beyond it is hidden
-    where it takes half the light or more (else drawn whole). Returns a RenderedFrame; parts of the view that the map does not cover are black,
-    masked out of `valid` and counted in `offmap_fraction`.
+    where it takes half the light or more (else drawn whole). Returns a RenderedFrame; parts
+    of the view that the map does not cover are black, masked out of `valid` and counted in
+    `offmap_fraction`.
     """
     roi_box = _check_roi(camera, roi)
     cam = camera if roi is None else roi_camera(camera, roi_box)
@@ -151,7 +152,7 @@ def render(camera: PinholeCamera, mount: CameraMount, pos_ned_m, R_nb, imagery: 
 
         truths = draw_vehicles(rgb, camera, (u0, v0), C, R_nc, vehicles, options.near_m,
                                options.far_m, ground_depth, obstacles,
-                               None if clouds is None or clouds.clear else clouds.hides)
+                               None if clouds is None else clouds.hides)
     rgb = apply_effects(rgb, cam, options, rng)
     # Off-map share: pixels neither sky nor ground with data nor an obstacle (valid and sky
     # never overlap).

@@ -243,9 +243,8 @@ class CameraSensor(Sensor):
         far = (-(10**7), -(10**7))  # the scratch region lies off every vehicle: nothing is drawn
         obstacles = tuple(getattr(world, "obstacles", ()) or ())
         clouds = world.clouds() if hasattr(world, "clouds") else None
-        hidden_by = None if clouds is None or clouds.clear else clouds.hides
         truths = draw_vehicles(scratch, cam, far, centre, R_nc, vehicles, self.params.near_m, self.params.far_m, None,
-                               obstacles, hidden_by) if vehicles else ()
+                               obstacles, None if clouds is None else clouds.hides) if vehicles else ()
         parts = []
         for roi in [None] if requests is None else list(requests):
             box = (0, 0, cam.width_px, cam.height_px) if roi is None else tuple(int(x) for x in roi)
