@@ -77,7 +77,7 @@ def compute_ismn(record: RunRecord) -> IsmnMetrics | None:
         all=_ismn_phase(eh, pct, fix),
         smooth=_ismn_phase(eh, pct, fix & ~turning),
         turning=_ismn_phase(eh, pct, fix & turning),
-        longest_gap_s=longest_gap_s(column(ismn, "t_s"), attempted, accepted),
+        longest_gap_s=_longest_gap_per_vehicle(ismn, attempted, accepted),
         clouds=_ismn_clouds(ismn, attempted, fix, accepted, eh),
     )
 
@@ -95,6 +95,16 @@ def longest_gap_s(t_s: np.ndarray, attempted: np.ndarray, accepted: np.ndarray) 
         return None
     ends = np.append(t_acc, t_s[attempted].max())
     return float(np.max(np.diff(ends))) if ends.size > 1 else 0.0
+
+
+def _longest_gap_per_vehicle(ismn: pd.DataFrame, attempted: np.ndarray, accepted: np.ndarray) -> float | None:
+    """longest_gap_s of each vehicle's own rows (their times interleave in one table), the
+    longest of them; None where no vehicle had an accepted fix."""
+    t = column(ismn, "t_s")
+    ids = ismn["vehicle_id"].astype(str).to_numpy() if "vehicle_id" in ismn.columns else np.zeros(len(ismn), str)
+    gaps = [longest_gap_s(t[ids == v], attempted[ids == v], accepted[ids == v]) for v in np.unique(ids)]
+    gaps = [g for g in gaps if g is not None]
+    return max(gaps) if gaps else None
 
 
 def _ismn_clouds(ismn: pd.DataFrame, attempted: np.ndarray, fix: np.ndarray, accepted: np.ndarray,

@@ -191,6 +191,9 @@ def test_ismn_longest_gap_and_clouds():
     assert m.longest_gap_s == pytest.approx(2.0) and m.clouds is None
     table["accepted"] = [True, False, False, False, False]
     assert score_record(record_of(straight_telemetry(n=100), {"ismn": table}), metrics=[]).ismn.longest_gap_s == 4.0
+    two = pd.concat([table.assign(t_s=table["t_s"] + 0.5, vehicle_id="b", accepted=True), table])
+    two = two.sort_values("t_s", kind="stable")  # b fixes every second between a's: a's gap stays 4 s
+    assert score_record(record_of(straight_telemetry(n=100), {"ismn": two}), metrics=[]).ismn.longest_gap_s == 4.0
     table["accepted"] = [True, False, True, False, True]
     table["truth_cloud_fraction"] = [0.0, 0.6, 0.97, 1.0, 0.2]
     m = score_record(record_of(straight_telemetry(n=100), {"ismn": table}), metrics=[]).ismn
