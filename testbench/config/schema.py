@@ -138,7 +138,11 @@ class Clouds(pydantic.BaseModel):
     size; opacity: how much light an optically thick cloud takes (0-1); drift_ne_mps: the
     clouds' velocity over the ground, north and east (None: the world's steady wind, calm:
     still). seed: the field's own seed (the same clouds in every run); None draws it from the
-    run's seed, so each run of a Monte Carlo batch meets other clouds."""
+    run's seed, so each run of a Monte Carlo batch meets other clouds.
+    shadow_light: the share of the ground's light (linear radiance) left in a thick cloud's
+    shadow, the diffuse skylight (1: no shadows); sun_azimuth_deg (from north, clockwise) and
+    sun_elevation_deg (above the horizon): the sun that casts them, both or neither (neither:
+    a procedural imagery's own sun, a real map's at local solar noon on the epoch's date)."""
 
     model_config = _CFG
     base_m: float = Field(gt=0.0, le=20_000.0)
@@ -148,6 +152,16 @@ class Clouds(pydantic.BaseModel):
     opacity: float = Field(default=1.0, ge=0.0, le=1.0)
     drift_ne_mps: tuple[float, float] | None = None
     seed: int | None = Field(default=None, ge=0)
+    shadow_light: float = Field(default=0.35, ge=0.0, le=1.0)
+    sun_azimuth_deg: float | None = Field(default=None, ge=-360.0, le=360.0)
+    sun_elevation_deg: float | None = Field(default=None, gt=0.0, le=90.0)
+
+    @model_validator(mode="after")
+    def _sun_whole(self):
+        if (self.sun_azimuth_deg is None) != (self.sun_elevation_deg is None):
+            raise ValueError("give both sun_azimuth_deg and sun_elevation_deg, or neither (expected the sun's "
+                             "direction whole, or the imagery's own sun)")
+        return self
 
     @model_validator(mode="after")
     def _windows_apart(self):

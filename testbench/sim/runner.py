@@ -66,7 +66,8 @@ def build_engine(
     processes: how many processes fly the vehicles' stacks, this one included (Engine)."""
     scn = loaded.scenario
     streams = RngStreams(scn.seed if seed is None else seed)
-    world = RunWorld(scn.world, origin_of(loaded), streams=streams)
+    world = RunWorld(scn.world, origin_of(loaded), streams=streams, epoch_year=scn.epoch_year)
+    world.cloud_layer()  # drawn now: a sun that cannot be placed is bad input before anything is written
     vehicles = [build_vehicle(scn, v, world, streams, str(loaded.directory)) for v in scn.vehicles]
     from testbench.sim.appearance import default_look
 

@@ -11,6 +11,7 @@ same-raster).
 from __future__ import annotations
 
 import logging
+import math
 import os
 from collections.abc import Mapping
 from pathlib import Path
@@ -19,10 +20,13 @@ from typing import Any, Callable, Iterator
 import numpy as np
 
 from testbench.config.schema import World
+from testbench.core.errors import InputError
 from testbench.core.interfaces import GeodeticOrigin
 from testbench.core.messages import TruthState
 from testbench.core.rng import RngStreams
 from testbench.world.magnetic import NT_TO_T, CrustalAnomaly
+from testbench.world.spec import is_procedural, parse_spec
+from testbench.world.sun import noon_sun_deg, sun_ned
 
 log = logging.getLogger(__name__)
 
@@ -37,11 +41,13 @@ class RunWorld:
     """Maps and terrain of a run, opened lazily (a run without cameras never reads imagery)."""
 
     def __init__(self, world: World, origin: GeodeticOrigin, cache_dir: Path | None = None,
-                 streams: RngStreams | None = None):
+                 streams: RngStreams | None = None, epoch_year: float = 2025.5):
         """streams: the run's random streams, which draw what the world draws per run (its
-        magnetic anomaly when the scenario gives that no seed of its own)."""
+        magnetic anomaly when the scenario gives that no seed of its own); epoch_year: the
+        scenario's date (decimal year), which places a real map's sun."""
         self.spec = world
         self.origin = origin
+        self.epoch_year = float(epoch_year)
         self.cache_dir = cache_dir or default_cache_dir()
         self._streams = streams
         self._magnetic_anomaly: CrustalAnomaly | None = None
@@ -119,9 +125,26 @@ class RunWorld:
         if drift is None:
             drift = self.spec.wind.velocity_ned_mps()[:2] if self.spec.wind is not None else (0.0, 0.0)
         windows = [CoverageWindow(w.start_s, w.end_s, w.coverage) for w in spec.windows]
+        sun = None if spec.shadow_light >= 1.0 else sun_ned(*self.sun_deg())
         self._clouds = CloudLayer(spec.base_m, spec.coverage, windows, spec.cell_m, spec.opacity, drift,
-                                  self._world_rng("clouds", spec.seed))
+                                  self._world_rng("clouds", spec.seed), sun_ned=sun,
+                                  shadow_light=spec.shadow_light)
         return self._clouds
+
+    def sun_deg(self) -> tuple[float, float]:
+        """(azimuth_deg, elevation_deg) of the sun that lights the rendered world: the clouds'
+        own where the scenario gives it, else a procedural imagery's, else the sun at local
+        solar noon at the origin on the scenario's date (world/sun.py)."""
+        clouds = self.spec.clouds
+        if clouds is not None and clouds.sun_elevation_deg is not None:
+            return float(clouds.sun_azimuth_deg), float(clouds.sun_elevation_deg)
+        if is_procedural(self.spec.imagery):
+            season = parse_spec(self.spec.imagery).appearance()
+            return math.degrees(season.sun_azimuth_rad), math.degrees(season.sun_elevation_rad)
+        try:
+            return noon_sun_deg(math.degrees(self.origin.lat_rad), self.epoch_year)
+        except ValueError as exc:
+            raise InputError(f"world.clouds: {exc}") from None
 
     def elevation(self):
         """Truth terrain model, or None for flat ground at the origin altitude."""

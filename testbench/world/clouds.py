@@ -17,8 +17,19 @@ s = 0.1 the edge's softness in the field's sigmas. The field moves with the drif
 takes alpha = opacity * d of the cloud's colour (camera/clouds.py); coverage 0 is no cloud
 at all, coverage 1 an overcast sheet (d = 1 everywhere).
 
-What is not modelled: the layer's thickness (a vehicle inside a cloud sees through it), the
-clouds' shadows on the ground, and their effect on UWB, GNSS or the magnetometer.
+Shadows: the ground under a cloud's shadow gets the diffuse skylight alone. A ground point G
+(NED) looks toward the sun along the unit vector s (NED, s_down < 0); the ray crosses the
+sheet at G + lambda s, lambda = (down_sheet - G_down) / s_down, and the direct sun that passes
+is 1 - alpha there. The ground's light is then
+
+    L = diffuse + (1 - diffuse) (1 - alpha),
+
+`diffuse` the share of a clear day's light that is skylight (about 0.2-0.4 in linear
+radiance). The shadows move with the clouds, so they move over the ground the camera sees.
+
+What is not modelled: the layer's thickness (a vehicle inside a cloud sees through it), light
+the clouds scatter onto the ground beside them, and the clouds' effect on UWB, GNSS or the
+magnetometer.
 """
 
 from __future__ import annotations
@@ -54,10 +65,14 @@ class CloudLayer:
     windows: CoverageWindow sequence (non-overlapping) that set another coverage for a while;
     cell_m: the typical cloud's size (m); opacity: alpha of an optically thick cloud (0-1];
     drift_ne_mps: (2,) the field's velocity over the ground, north and east (m/s);
-    rng: the generator the field is drawn from (once, here)."""
+    rng: the generator the field is drawn from (once, here);
+    sun_ned: (3,) unit vector toward the sun (NED), or None: no shadows on the ground;
+    shadow_light: the share of the ground's light left in a thick cloud's shadow (the
+    diffuse skylight, linear radiance, 0-1; 1: no shadows)."""
 
     def __init__(self, base_m: float, coverage: float, windows: Sequence[CoverageWindow], cell_m: float,
-                 opacity: float, drift_ne_mps: tuple[float, float], rng: np.random.Generator):
+                 opacity: float, drift_ne_mps: tuple[float, float], rng: np.random.Generator, *,
+                 sun_ned: Sequence[float] | None = None, shadow_light: float = 1.0):
         self.base_m = float(base_m)
         self.down_m = -self.base_m
         self.coverage = float(coverage)
@@ -69,6 +84,15 @@ class CloudLayer:
         self.field = _von_karman_field(_TILE_PX, _CELL_PX, rng)
         """(512, 512) float32 unit-variance field, rows north, columns east, periodic."""
         self._sorted = np.sort(self.field, axis=None)
+        self.sun_ned = None
+        if sun_ned is not None and shadow_light < 1.0:
+            sun = np.asarray(sun_ned, float)
+            norm = float(np.linalg.norm(sun))
+            if not (norm > 0.0 and sun[2] < 0.0):
+                raise ValueError(f"sun_ned {sun.tolist()} does not point above the horizon (expected a NED vector "
+                                 f"with a negative down component)")
+            self.sun_ned = sun / norm
+        self.shadow_light = float(shadow_light)
 
     def coverage_at(self, t_s: float) -> float:
         """The share of the sky under cloud at t_s (0-1)."""
@@ -98,6 +122,29 @@ class CloudView:
     def clear(self) -> bool:
         """True when there is no cloud at all at this instant (coverage 0 or opacity 0)."""
         return self.coverage <= 0.0 or self.layer.opacity <= 0.0
+
+    @property
+    def casts_shadows(self) -> bool:
+        """True when the clouds darken the ground now (a sun above the horizon and clouds)."""
+        return self.layer.sun_ned is not None and not self.clear
+
+    def ground_light(self, north_m, east_m, down_m) -> np.ndarray:
+        """The share of a clear day's light (linear, float32 in [shadow_light, 1], the inputs'
+        shape) that reaches NED ground points (m): the diffuse skylight plus the direct sun
+        the sheet lets pass on the way to the sun. 1 where no shadow falls (no sun, a clear
+        sky, ground above the sheet)."""
+        n = np.asarray(north_m, float)
+        if not self.casts_shadows:
+            return np.ones(n.shape, np.float32)
+        e = np.asarray(east_m, float)
+        d = np.asarray(down_m, float)
+        s = self.layer.sun_ned
+        lam = (self.down_m - d) / s[2]  # metres toward the sun to the sheet (> 0 below it)
+        below = lam > 0.0
+        a = self.alpha(np.where(below, n + lam * s[0], 0.0), np.where(below, e + lam * s[1], 0.0))
+        diffuse = np.float32(self.layer.shadow_light)
+        light = diffuse + (np.float32(1.0) - diffuse) * (np.float32(1.0) - a)
+        return np.where(below, light, np.float32(1.0)).astype(np.float32, copy=False)
 
     def density(self, north_m, east_m) -> np.ndarray:
         """Optical density d in [0, 1] (float32, the shape of the inputs) at NED north / east

@@ -92,3 +92,77 @@ def test_the_scenario_keys_refuse_what_they_cannot_mean():
         Clouds(base_m=500.0, coverage=1.5)
     with pytest.raises(pydantic.ValidationError, match="extra"):
         Clouds(base_m=500.0, thickness_m=100.0)
+    with pytest.raises(pydantic.ValidationError, match="both sun_azimuth_deg and sun_elevation_deg"):
+        Clouds(base_m=500.0, sun_azimuth_deg=120.0)
+    with pytest.raises(pydantic.ValidationError):
+        Clouds(base_m=500.0, sun_azimuth_deg=120.0, sun_elevation_deg=-5.0)  # below the horizon
+    with pytest.raises(pydantic.ValidationError):
+        Clouds(base_m=500.0, shadow_light=1.2)
+
+
+def _sunlit(coverage, sun=(0.5, 0.3, -0.8), light=0.3, seed=3):
+    return CloudLayer(500.0, coverage, (), 300.0, 1.0, (0.0, 0.0), np.random.default_rng(seed),
+                      sun_ned=sun, shadow_light=light)
+
+
+def test_a_shadow_falls_where_the_ray_to_the_sun_crosses_a_cloud():
+    layer = _sunlit(0.4)
+    view = layer.at(0.0)
+    rng = np.random.default_rng(1)
+    n, e = rng.uniform(-3000, 3000, 400), rng.uniform(-3000, 3000, 400)
+    down = rng.uniform(-100.0, 50.0, 400)  # relief: ground 100 m up to 50 m down
+    s = layer.sun_ned
+    lam = (-500.0 - down) / s[2]
+    expected = 0.3 + 0.7 * (1.0 - view.alpha(n + lam * s[0], e + lam * s[1]))
+    light = view.ground_light(n, e, down)
+    assert np.allclose(light, expected, atol=1e-6)
+    # The shadow is not the cloud right above (the sun is not at the zenith).
+    above = 0.3 + 0.7 * (1.0 - view.alpha(n, e))
+    assert np.mean(np.abs(light - above) > 0.5) > 0.1
+    assert np.all((light >= 0.3 - 1e-6) & (light <= 1.0)) and np.mean(np.isclose(light, 0.3)) > 0.2
+
+
+def test_no_shadow_without_a_sun_or_clouds_or_above_the_sheet():
+    n, e = np.linspace(-2000, 2000, 50), np.zeros(50)
+    assert np.all(_layer(1.0).at(0.0).ground_light(n, e, np.zeros(50)) == 1.0)  # no sun
+    assert np.all(_sunlit(0.0).at(0.0).ground_light(n, e, np.zeros(50)) == 1.0)  # clear sky
+    overcast = _sunlit(1.0).at(0.0)
+    assert np.allclose(overcast.ground_light(n, e, np.zeros(50)), 0.3)  # the skylight alone
+    assert np.all(overcast.ground_light(n, e, np.full(50, -600.0)) == 1.0)  # a summit above the sheet
+    assert _sunlit(0.5, light=1.0).sun_ned is None  # shadow_light 1: no shadows at all
+    with pytest.raises(ValueError, match="above the horizon"):
+        _sunlit(0.5, sun=(1.0, 0.0, 0.2))
+
+
+def test_the_run_lights_its_clouds_with_the_worlds_sun():
+    """A procedural imagery's clouds cast their shadows from the season's own sun, a real map's
+    from the noon sun of the scenario's date; the scenario's sun overrides both."""
+    import math
+
+    from testbench.config.schema import World
+    from testbench.core.errors import InputError
+    from testbench.core.interfaces import GeodeticOrigin
+    from testbench.core.rng import RngStreams
+    from testbench.sensors.fakes import ORIGIN
+    from testbench.sim.world_runtime import RunWorld
+    from testbench.world.procedural import season_from
+    from testbench.world.sun import noon_sun_deg, sun_ned
+
+    def layer(imagery, epoch_year=2025.5, **clouds):
+        world = World(origin={"lat_deg": math.degrees(ORIGIN.lat_rad), "lon_deg": 7.0, "alt_m": 300.0},
+                      imagery=imagery, clouds=Clouds(base_m=500.0, **clouds))
+        return RunWorld(world, ORIGIN, streams=RngStreams(1), epoch_year=epoch_year).cloud_layer()
+
+    summer = season_from("summer")
+    expected = sun_ned(math.degrees(summer.sun_azimuth_rad), math.degrees(summer.sun_elevation_rad))
+    assert np.allclose(layer("procedural:farmland?seed=7&season=summer").sun_ned, expected)
+    noon = noon_sun_deg(math.degrees(ORIGIN.lat_rad), 2025.5)
+    assert np.allclose(layer("/maps/naip_2018.tif").sun_ned, sun_ned(*noon))  # not opened: no file needed
+    assert np.allclose(layer("/maps/naip_2018.tif", sun_azimuth_deg=250.0, sun_elevation_deg=30.0).sun_ned,
+                       sun_ned(250.0, 30.0))
+    assert layer("/maps/naip_2018.tif", shadow_light=1.0).sun_ned is None
+    polar = GeodeticOrigin(math.radians(80.0), math.radians(7.0), 0.0)
+    world = World(origin={"lat_deg": 80.0, "lon_deg": 7.0, "alt_m": 0.0}, imagery="/maps/svalbard.tif",
+                  clouds=Clouds(base_m=500.0))
+    with pytest.raises(InputError, match="does not rise.*sun_elevation_deg"):
+        RunWorld(world, polar, streams=RngStreams(1), epoch_year=2025.97).cloud_layer()  # December

@@ -70,7 +70,7 @@ def build(scenario_path: str, overrides=(), pipeline_over: dict | None = None, m
     scn = loaded.scenario
     # The scenario seed's streams draw what the world draws per run (clouds, anomaly): those
     # of a `testbench run` at that seed, not of a Monte Carlo run's own seed sequence.
-    world = RunWorld(scn.world, origin_of(loaded), streams=RngStreams(scn.seed))
+    world = RunWorld(scn.world, origin_of(loaded), streams=RngStreams(scn.seed), epoch_year=scn.epoch_year)
     veh = scn.vehicles[0]
     aid = next(a for a in veh.aids if a.type == "ismn")
     ap = dict(aid.params)

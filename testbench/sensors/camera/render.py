@@ -18,7 +18,7 @@ import numpy as np
 
 from testbench.core.camera_geometry import CameraMount, PinholeCamera, camera_pose_ned
 from testbench.core.obstacles import Obstacle
-from testbench.sensors.camera.clouds import blend_clouds, cloud_alpha
+from testbench.sensors.camera.clouds import apply_shadows, blend_clouds, cloud_alpha, ray_grid, shadow_gain
 from testbench.sensors.camera.effects import apply_effects
 from testbench.sensors.camera.flat import render_plane
 from testbench.sensors.camera.lens import distortion_remap, normalized_grid, roi_camera
@@ -95,8 +95,9 @@ def render(camera: PinholeCamera, mount: CameraMount, pos_ned_m, R_nb, imagery: 
     that look around predicted tracks; obstacles: the world's boxes (core.obstacles), drawn
     over the ground and hiding the vehicles behind them, their pixels neither `valid` nor
     `sky`; clouds: the world's cloud sheet at this instant (world.clouds.CloudView, None:
-    clear), drawn over the ground, sky and obstacles beyond it; a vehicle beyond it is hidden
-    where it takes half the light or more (else drawn whole). Returns a RenderedFrame; parts
+    clear), drawn over the ground, sky and obstacles beyond it, its shadows darkening the
+    ground (where the layer has a sun; the vehicles and obstacles are not shaded); a vehicle
+    beyond it is hidden where it takes half the light or more (else drawn whole). Returns a RenderedFrame; parts
     of the view that the map does not cover are black, masked out of `valid` and counted in
     `offmap_fraction`.
     """
@@ -138,7 +139,11 @@ def render(camera: PinholeCamera, mount: CameraMount, pos_ned_m, R_nb, imagery: 
             def depth_fn(cols: np.ndarray, rows: np.ndarray) -> np.ndarray:  # region px -> camera depth m
                 return t2[np.minimum(np.round(rows / k).astype(int), t2.shape[0] - 1),
                           np.minimum(np.round(cols / k).astype(int), t2.shape[1] - 1)]
-        cover = cloud_alpha(cam, C, R_nc, clouds, depth_fn, -float(options.ground_height_m))
+        rays = ray_grid(cam, C, R_nc, depth_fn, -float(options.ground_height_m))
+        gain = shadow_gain(rays, clouds)
+        if gain is not None:  # the shadows first: the clouds in front hide the shadowed ground
+            apply_shadows(rgb, gain, covered)
+        cover = cloud_alpha(rays, clouds)
         if cover is not None:
             blend_clouds(rgb, cover[0], cover[1], bool(C[2] < clouds.down_m))
             ground = ~sky  # the share of the ground in view (and of what hides it) that the clouds hide

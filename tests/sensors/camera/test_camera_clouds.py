@@ -105,3 +105,40 @@ def test_a_clouded_frame_does_not_depend_on_where_buffers_land():
         f = render(cam, mount(-70.0), POS, np.eye(3), _ground(), options=NO_HAZE, clouds=view)
         results.add(f.image.tobytes())
     assert len(results) == 1
+
+
+def test_the_clouds_shadows_darken_the_ground_where_the_sun_is_cut():
+    """Over uniform grey ground, a nadir camera: each ground pixel is darkened by the light its
+    ground point gets (world.clouds.CloudView.ground_light) through the frames' gamma, where
+    that point's ray to the sun crosses a cloud, and the ground under a clear sun is as it was."""
+    grey = raster(np.full((600, 600, 3), 160, np.uint8), 8.0)
+    layer = CloudLayer(500.0, 0.35, (), 700.0, 1.0, (0.0, 0.0), np.random.default_rng(4),
+                       sun_ned=(0.3, 0.4, -0.87), shadow_light=0.3)
+    view = layer.at(0.0)
+    f = render(CAM, mount(-90.0), POS, np.eye(3), grey, options=NO_HAZE, clouds=view)
+    C, R_nc = camera_pose_ned(POS, np.eye(3), mount(-90.0))
+    v, u = np.mgrid[5:CAM.height_px:11, 5:CAM.width_px:11]
+    x, y = undistort_pixels(CAM, u.astype(float), v.astype(float))
+    d = np.stack([x, y, np.ones_like(x)], axis=-1) @ R_nc.T
+    t = (0.0 - C[2]) / d[..., 2]  # to the ground
+    g_n, g_e = C[0] + t * d[..., 0], C[1] + t * d[..., 1]
+    light = view.ground_light(g_n, g_e, np.zeros_like(g_n))
+    t_sheet = (view.down_m - C[2]) / d[..., 2]
+    s_n, s_e = C[0] + t_sheet * d[..., 0], C[1] + t_sheet * d[..., 1]
+    in_cloud = np.max([view.density(s_n + dn, s_e + de) for dn, de in ((0, 0), (15, 15), (-15, -15), (15, -15), (-15, 15))],
+                      axis=0)  # the sheet 300 m from the camera: 8 px span 10 m of it
+    # Firm: clear sheet in front, and the same light 60 m around (the 8 px sampling spans 27 m
+    # of ground under the camera, twice that at the frame's edges).
+    around = [view.ground_light(g_n + dn, g_e + de, np.zeros_like(g_n))
+              for dn, de in ((60, 0), (-60, 0), (0, 60), (0, -60), (42, 42), (-42, -42), (42, -42), (-42, 42))]
+    firm = (in_cloud == 0.0) & np.all([a == light for a in around], axis=0)
+    shaded, lit = firm & (light < 0.31), firm & (light > 0.99)
+    assert shaded.sum() > 25 and lit.sum() > 100
+    seen = f.image[v, u].astype(float).mean(axis=-1)
+    # (all but the odd sample next to an edge the 8 px interpolation still reaches)
+    assert np.mean(np.abs(seen[lit] - 160.0) <= 1.0) > 0.97
+    assert np.mean(np.abs(seen[shaded] - 160.0 * 0.3 ** (1.0 / 2.2)) <= 1.5) > 0.9
+    # Without a sun the same clouds cast nothing.
+    dark = CloudLayer(500.0, 0.35, (), 700.0, 1.0, (0.0, 0.0), np.random.default_rng(4)).at(0.0)
+    g = render(CAM, mount(-90.0), POS, np.eye(3), grey, options=NO_HAZE, clouds=dark).image[v, u].astype(float)
+    assert np.allclose(g.mean(axis=-1)[firm], 160.0, atol=1.0)
