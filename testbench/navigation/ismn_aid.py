@@ -5,9 +5,10 @@ It wraps `ismn.IsmnPipeline` for the engine: it takes the camera's intrinsics an
 the camera sensor, the reference map and elevation the vehicle carries (never the imagery the
 camera renders, unless the scenario says so and is labelled same-raster), and reports each
 attempt as a row of events/ismn.parquet. Truth columns of those rows are left as placeholders
-that the engine fills, but one: truth_cloud_fraction, the share of the ground in view that
-clouds hide, is copied from the renderer's frame (CameraFrame.cloud_fraction) for scoring;
-the pipeline is given the pixels alone.
+that the engine fills, but two: truth_cloud_fraction, the share of the ground in view that
+clouds hide, and truth_shadow_fraction, the share that shows in their shadows, are copied from
+the renderer's frame (CameraFrame.cloud_fraction, shadow_fraction) for scoring; the pipeline
+is given the pixels alone.
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ class IsmnAttempt:
     same_raster: bool
     keep_example: bool
     cloud_fraction: float = 0.0  # the renderer's (truth), for the record only
+    shadow_fraction: float = 0.0  # the same
 
     def event_rows(self, vehicle_id: str) -> list[tuple[str, dict]]:
         d = self.diag
@@ -58,6 +60,7 @@ class IsmnAttempt:
             same_raster=self.same_raster,
             truth_north_m=_NAN, truth_east_m=_NAN, truth_down_m=_NAN, truth_roll_rad=_NAN, truth_height_agl_m=_NAN,
             truth_cloud_fraction=float(self.cloud_fraction),
+            truth_shadow_fraction=float(self.shadow_fraction),
         )
         return [("ismn", row)]
 
@@ -128,4 +131,5 @@ class IsmnAid(NavigationAid):
         if keep:
             self._next_example_t = measurement.t_s + self.params.example_every_s
         return ([fix] if fix is not None else []), IsmnAttempt(measurement.t_s, fix, diag, self.same_raster, keep,
-                                                               float(getattr(measurement, "cloud_fraction", 0.0)))
+                                                               float(getattr(measurement, "cloud_fraction", 0.0)),
+                                                               float(getattr(measurement, "shadow_fraction", 0.0)))

@@ -106,8 +106,12 @@ def ismn_fix_figure(record: RunRecord) -> FigureItem | None:
         axh.legend(fontsize=7)
     axh.set_xlabel("matching latency (ms)")
     axh.set_ylabel("attempts")
-    clouds_note = (" Grey: the share of the ground in the camera's view that clouds hide (truth), right axis."
-                   if clouded else "")
+    clouds_note = ""
+    if clouded:
+        clouds_note = " Grey: the share of the ground in the camera's view that clouds hide (truth), right axis."
+    if clouded == "shadows":
+        clouds_note += " Dark line: the share that shows in the clouds' shadows (truth)."
+
     return FigureItem(
         "Scene-matching fixes and latency",
         "Left: horizontal error of each produced fix against truth (o accepted by the filter, x rejected)."
@@ -116,21 +120,28 @@ def ismn_fix_figure(record: RunRecord) -> FigureItem | None:
     )
 
 
-def _cloud_share_axis(ax, ismn: pd.DataFrame) -> bool:
-    """Each frame's truth cloud share on a right-hand axis of ax, where the world has clouds;
-    whether it drew one."""
+def _cloud_share_axis(ax, ismn: pd.DataFrame) -> bool | str:
+    """Each frame's truth cloud share on a right-hand axis of ax, where the world has clouds,
+    and the share in their shadows where they cast any; False when it drew nothing, "shadows"
+    when it drew both, else True."""
     if "truth_cloud_fraction" not in ismn.columns:
         return False
     share = column(ismn, "truth_cloud_fraction")
     if not np.any(share > 0.0):
         return False
+    t = column(ismn, "t_s")
     axc = ax.twinx()
-    axc.fill_between(column(ismn, "t_s"), 100.0 * share, step="mid", color="0.6", alpha=0.3, lw=0)
+    axc.fill_between(t, 100.0 * share, step="mid", color="0.6", alpha=0.3, lw=0)
+    shade = column(ismn, "truth_shadow_fraction") if "truth_shadow_fraction" in ismn.columns else None
+    drew_shadows = shade is not None and bool(np.any(shade > 0.0))
+    if drew_shadows:
+        axc.step(t, 100.0 * shade, where="mid", color="0.25", lw=0.8, alpha=0.7)
     axc.set_ylim(0.0, 100.0)
-    axc.set_ylabel("ground hidden by cloud (%)", color="0.4")
+    axc.set_ylabel("ground hidden by cloud / in shadow (%)" if drew_shadows else "ground hidden by cloud (%)",
+                   color="0.4")
     ax.set_zorder(axc.get_zorder() + 1)  # the fixes over the grey, not under it
     ax.patch.set_visible(False)
-    return True
+    return "shadows" if drew_shadows else True
 
 
 def relnav_figure(record: RunRecord) -> FigureItem | None:

@@ -84,6 +84,8 @@ def compute_ismn(record: RunRecord) -> IsmnMetrics | None:
 
 CLOUDED_FRACTION = 0.5
 OVERCAST_FRACTION = 0.95
+SHADOWED_FRACTION = 0.2
+SUNLIT_FRACTION = 0.05
 
 
 def longest_gap_s(t_s: np.ndarray, attempted: np.ndarray, accepted: np.ndarray) -> float | None:
@@ -117,10 +119,18 @@ def _ismn_clouds(ismn: pd.DataFrame, attempted: np.ndarray, fix: np.ndarray, acc
         return None
     clouded = attempted & (share >= CLOUDED_FRACTION)
     overcast = attempted & (share >= OVERCAST_FRACTION)
+    shadows = {}
+    if "truth_shadow_fraction" in ismn.columns and np.any(column(ismn, "truth_shadow_fraction")[attempted] > 0.0):
+        shade = column(ismn, "truth_shadow_fraction")
+        for name, frames in (("shadowed", shade >= SHADOWED_FRACTION), ("sunlit", shade < SUNLIT_FRACTION)):
+            sel = fix & frames
+            shadows[f"{name}_fixes"] = int(sel.sum())
+            shadows[f"{name}_horizontal_error_m"] = error_stats(eh[sel]) if np.any(sel) else None
     return IsmnClouds(
         attempts=int(clouded.sum()), fixes=int((fix & clouded).sum()), accepted=int((accepted & clouded).sum()),
         overcast_attempts=int(overcast.sum()), overcast_accepted=int((accepted & overcast).sum()),
         horizontal_error_m=error_stats(eh[fix & clouded]) if np.any(fix & clouded) else None,
+        **shadows,
     )
 
 

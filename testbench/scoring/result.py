@@ -199,7 +199,11 @@ class IsmnClouds(_Section):
     attempts / fixes / accepted: over the frames that clouds covered half of or more;
     horizontal_error_m: error of the fixes made from those frames; overcast_attempts /
     overcast_accepted: over the frames clouds covered 95 % of or more, where nothing of the
-    ground is left to match (a fix the filter takes from one is a false fix)."""
+    ground is left to match (a fix the filter takes from one is a false fix);
+    shadowed_fixes / shadowed_horizontal_error_m: the fixes from frames a fifth or more of
+    whose ground in view shows in a cloud's shadow (truth_shadow_fraction), and their error;
+    sunlit_fixes / sunlit_horizontal_error_m: those from frames under 5 % in shadow (only where
+    the clouds cast shadows)."""
 
     attempts: int
     fixes: int
@@ -207,6 +211,10 @@ class IsmnClouds(_Section):
     overcast_attempts: int
     overcast_accepted: int
     horizontal_error_m: ErrorStats | None = None
+    shadowed_fixes: int | None = None
+    shadowed_horizontal_error_m: ErrorStats | None = None
+    sunlit_fixes: int | None = None
+    sunlit_horizontal_error_m: ErrorStats | None = None
 
 
 @dataclass(frozen=True)

@@ -166,6 +166,10 @@ def test_the_fix_panel_shows_the_cloud_share_where_the_world_had_clouds(tmp_path
     item = ismn_fix_figure(load_run(d))
     assert len(item.figure.axes) == 3 and "clouds hide" in item.caption
     assert item.figure.axes[-1].get_ylabel() == "ground hidden by cloud (%)"
+    ismn["truth_shadow_fraction"] = np.linspace(0.3, 0.0, len(ismn))
+    ismn.to_parquet(path)
+    item = ismn_fix_figure(load_run(d))
+    assert "clouds' shadows" in item.caption and item.figure.axes[-1].get_ylabel().endswith("in shadow (%)")
 
 
 def test_gnss_sky_figure_and_summary_where_a_receiver_had_a_sky_model(tmp_path):

@@ -201,6 +201,13 @@ def test_ismn_longest_gap_and_clouds():
     # Clouded (>= 0.5): rows 2-4, fixes at 2 and 3 s, accepted at 3 s; overcast (>= 0.95): 3, 4 s.
     assert (c.attempts, c.fixes, c.accepted, c.overcast_attempts, c.overcast_accepted) == (3, 2, 1, 2, 1)
     assert c.horizontal_error_m.max == pytest.approx(0.0) and c.horizontal_error_m.n == 2
+    assert c.shadowed_fixes is None  # no shadow column: a record from before the shadows
+    # Shadowed (>= 0.2 of the ground in view): the fixes at 1 and 3 s (4 s made none); sunlit
+    # (< 0.05): those at 2 and 5 s.
+    table["truth_shadow_fraction"] = [0.3, 0.0, 0.25, 0.5, 0.01]
+    c = score_record(record_of(straight_telemetry(n=100), {"ismn": table}), metrics=[]).ismn.clouds
+    assert (c.shadowed_fixes, c.sunlit_fixes) == (2, 2)
+    assert c.shadowed_horizontal_error_m.mean == pytest.approx(2.5) and c.sunlit_horizontal_error_m.mean == pytest.approx(25.0)
     table["truth_cloud_fraction"] = 0.0
     assert score_record(record_of(straight_telemetry(n=100), {"ismn": table}), metrics=[]).ismn.clouds is None
 

@@ -120,6 +120,13 @@ def shadow_gain(grid: RayGrid, view) -> np.ndarray | None:
     return grid.upsample(np.power(light, 1.0 / GAMMA))
 
 
+def half_shadow_gain(view) -> float:
+    """The pixel factor (shadow_gain) where a cloud cuts half the direct sun: below it a pixel
+    counts as in shadow (RenderedFrame.shadow_fraction)."""
+    light = view.layer.shadow_light
+    return float((light + 0.5 * (1.0 - light)) ** (1.0 / GAMMA))
+
+
 def apply_shadows(rgb: np.ndarray, gain: np.ndarray, keep: np.ndarray | None = None) -> None:
     """Darken rgb (H, W, 3) uint8 in place by gain (H, W), except where keep (H, W bool: pixels
     the shadow does not reach, such as an obstacle's, whose ground point is not theirs)."""

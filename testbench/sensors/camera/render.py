@@ -18,7 +18,8 @@ import numpy as np
 
 from testbench.core.camera_geometry import CameraMount, PinholeCamera, camera_pose_ned
 from testbench.core.obstacles import Obstacle
-from testbench.sensors.camera.clouds import apply_shadows, blend_clouds, cloud_alpha, ray_grid, shadow_gain
+from testbench.sensors.camera.clouds import (apply_shadows, blend_clouds, cloud_alpha, half_shadow_gain, ray_grid,
+                                             shadow_gain)
 from testbench.sensors.camera.effects import apply_effects
 from testbench.sensors.camera.flat import render_plane
 from testbench.sensors.camera.lens import distortion_remap, normalized_grid, roi_camera
@@ -131,7 +132,7 @@ def render(camera: PinholeCamera, mount: CameraMount, pos_ned_m, R_nb, imagery: 
         valid, sky = valid & ~covered, sky & ~covered
         if points is not None:
             points[covered] = np.nan
-    cloud_fraction = 0.0
+    cloud_fraction = shadow_fraction = 0.0
     if clouds is not None and not clouds.clear:
         if elevation is None:
             depth_fn = None
@@ -146,8 +147,17 @@ def render(camera: PinholeCamera, mount: CameraMount, pos_ned_m, R_nb, imagery: 
         cover = cloud_alpha(rays, clouds)
         if cover is not None:
             blend_clouds(rgb, cover[0], cover[1], bool(C[2] < clouds.down_m))
-            ground = ~sky  # the share of the ground in view (and of what hides it) that the clouds hide
-            cloud_fraction = float(np.count_nonzero((cover[0] >= 0.5) & ground)) / max(int(np.count_nonzero(ground)), 1)
+        # The shares of the ground in view (and of what hides it) that the clouds hide, and that
+        # shows in their shadows.
+        ground = ~sky
+        n_ground = max(int(np.count_nonzero(ground)), 1)
+        hidden = np.zeros_like(ground) if cover is None else cover[0] >= 0.5
+        cloud_fraction = float(np.count_nonzero(hidden & ground)) / n_ground
+        if gain is not None:
+            shaded = gain <= np.float32(half_shadow_gain(clouds))
+            if covered is not None:
+                shaded &= ~covered
+            shadow_fraction = float(np.count_nonzero(shaded & ground & ~hidden)) / n_ground
     truths = ()
     if vehicles:
         def ground_depth(u: float, v: float) -> float:  # full-frame pixel -> region pixel
@@ -163,4 +173,5 @@ def render(camera: PinholeCamera, mount: CameraMount, pos_ned_m, R_nb, imagery: 
     # never overlap).
     seen = valid | sky if covered is None else valid | sky | covered
     offmap = 0.0 if complete else 1.0 - float(np.count_nonzero(seen)) / valid.size
-    return RenderedFrame(rgb, valid, sky, offmap, truths, None if roi is None else roi_box, points, cloud_fraction)
+    return RenderedFrame(rgb, valid, sky, offmap, truths, None if roi is None else roi_box, points, cloud_fraction,
+                         shadow_fraction)

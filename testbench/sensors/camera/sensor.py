@@ -69,8 +69,9 @@ class CameraFrame:
     camera, mount: the camera model (K, distortion) and the mounting as calibrated (R_bc
     camera->body, lever arm: CameraSensor.mount, not the true one when the camera has a
     boresight error), which is what navigation may use; cloud_fraction: share of the rendered
-    pixels looking at the ground that a cloud takes half the light of or more (truth, for
-    scoring alone, as offmap_fraction).
+    pixels looking at the ground that a cloud takes half the light of or more;
+    shadow_fraction: share of them that show ground in a cloud's shadow (RenderedFrame; both
+    truth, for scoring alone, as offmap_fraction).
     """
 
     t_s: float
@@ -82,6 +83,7 @@ class CameraFrame:
     camera: PinholeCamera | None = None
     mount: CameraMount | None = None
     cloud_fraction: float = 0.0
+    shadow_fraction: float = 0.0
 
 
 class CameraParams(ParamsModel):
@@ -225,13 +227,14 @@ class CameraSensor(Sensor):
         offmap = sum(p.offmap_fraction * p.valid.size for p in parts) / max(n_px, 1)
         n_ground = [int(p.valid.size - np.count_nonzero(p.sky)) for p in parts]
         clouded = sum(p.cloud_fraction * n for p, n in zip(parts, n_ground)) / max(sum(n_ground), 1)
+        shadowed = sum(p.shadow_fraction * n for p, n in zip(parts, n_ground)) / max(sum(n_ground), 1)
         if offmap > 0.5 and not self._warned_offmap:
             log.warning("camera %s at t=%.1f s: %.0f %% of the view is off the map (no-data, drawn black; a camera far_m "
                         "short of the map's edge draws haze and sky there instead, or use a larger map)",
                         self.name, truth.t_s, 100 * offmap)
             self._warned_offmap = True
         return CameraFrame(truth.t_s, self.name, None if whole is None else whole.image, tuple(parts), truths, offmap,
-                           self.camera, self.mount, clouded)
+                           self.camera, self.mount, clouded, shadowed)
 
     def _annotations_only(self, truth: TruthState, world: Any, centre: np.ndarray, R_nc: np.ndarray, requests) -> CameraFrame:
         """A frame without pixels: zero-stride black images of the requested regions, with the

@@ -105,8 +105,10 @@ class RenderedFrame:
     vehicles: truth of the other vehicles; roi: (u0, v0, u1, v1) of the rendered region in the
     full frame (the whole frame when None); ground_points_ned_m (h, w, 3) NED of each pixel's
     ground point (nan where sky), only when asked for; cloud_fraction: share of the pixels
-    that look at the ground (not sky) whose ray a cloud takes half the light of or more
-    (truth, for scoring: nothing in the pixels says which they are). The masks are read-only (frames that are all ground share
+    that look at the ground (not sky) whose ray a cloud takes half the light of or more;
+    shadow_fraction: share of those pixels that show ground (not hidden so) lying in a
+    cloud's shadow, half its direct sun or more cut (both truth, for scoring: nothing in the
+    pixels says which they are). The masks are read-only (frames that are all ground share
     one constant pair): copy them to modify.
     """
 
@@ -118,3 +120,4 @@ class RenderedFrame:
     roi: tuple[int, int, int, int] | None = None
     ground_points_ned_m: np.ndarray | None = field(default=None, repr=False)
     cloud_fraction: float = 0.0
+    shadow_fraction: float = 0.0

@@ -138,7 +138,11 @@ def test_the_clouds_shadows_darken_the_ground_where_the_sun_is_cut():
     # (all but the odd sample next to an edge the 8 px interpolation still reaches)
     assert np.mean(np.abs(seen[lit] - 160.0) <= 1.0) > 0.97
     assert np.mean(np.abs(seen[shaded] - 160.0 * 0.3 ** (1.0 / 2.2)) <= 1.5) > 0.9
+    # The truth share of the ground in view that shows in shadow, as the samples read it.
+    assert abs(f.shadow_fraction - float(np.mean((light <= 0.65) & (in_cloud < 0.5)))) < 0.05
+    assert f.shadow_fraction > 0.05
     # Without a sun the same clouds cast nothing.
     dark = CloudLayer(500.0, 0.35, (), 700.0, 1.0, (0.0, 0.0), np.random.default_rng(4)).at(0.0)
     g = render(CAM, mount(-90.0), POS, np.eye(3), grey, options=NO_HAZE, clouds=dark).image[v, u].astype(float)
     assert np.allclose(g.mean(axis=-1)[firm], 160.0, atol=1.0)
+    assert render(CAM, mount(-90.0), POS, np.eye(3), grey, options=NO_HAZE, clouds=dark).shadow_fraction == 0.0
