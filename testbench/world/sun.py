@@ -42,6 +42,7 @@ def noon_sun_deg(lat_deg: float, epoch_year: float) -> tuple[float, float]:
     delta = solar_declination_deg(epoch_year)
     elevation = 90.0 - abs(lat_deg - delta)
     if elevation <= 0.0:
-        raise ValueError(f"the sun does not rise at latitude {lat_deg:g} deg on day {epoch_year:.3f} "
-                         f"(noon elevation {elevation:.1f} deg): give world.clouds.sun_elevation_deg")
+        raise ValueError(f"the sun does not rise at latitude {lat_deg:g} deg on {epoch_year:.3f} (decimal year; "
+                         f"noon elevation {elevation:.1f} deg): give world.clouds.sun_azimuth_deg and "
+                         f"sun_elevation_deg, or shadow_light: 1 for no shadows")
     return (180.0 if lat_deg > delta else 0.0), elevation

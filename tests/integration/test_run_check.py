@@ -73,3 +73,18 @@ def test_check_refuses_boresight_states_without_an_image_pose():
     ok = _run(scenario, "--check", "--set", states, "--set", "vehicles.uav0.aids.ismn.pipeline.pose_from_image=true",
               "--set", "vehicles.uav0.sensors.down.mount_error_sigma_deg=0.5")
     assert ok.returncode == 0, ok.stderr
+
+
+def test_check_refuses_clouds_whose_sun_does_not_rise():
+    """Shadows over a map that is not procedural are cast by the noon sun of the scenario's date;
+    where that sun does not rise (a polar night) the check says so and names the key that gives
+    one; with a sun given, or the shadows off, the scenario builds."""
+    scenario = str(SCENARIOS / "fixedwing_racetrack.yaml")
+    arctic = ["--set", "world.origin.lat_deg=80.0", "--set", "epoch_year=2025.97",
+              "--set", "world.clouds={base_m: 500.0, coverage: 0.3}"]
+    proc = _run(scenario, "--check", *arctic)
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert "does not rise" in proc.stderr and "sun_elevation_deg" in proc.stderr and "Traceback" not in proc.stderr
+    for fix in ("world.clouds.shadow_light=1.0", "world.clouds={base_m: 500.0, sun_azimuth_deg: 180.0, sun_elevation_deg: 5.0}"):
+        ok = _run(scenario, "--check", *arctic, "--set", fix)
+        assert ok.returncode == 0, ok.stderr
