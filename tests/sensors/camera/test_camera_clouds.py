@@ -95,7 +95,8 @@ def test_a_clouded_frame_does_not_depend_on_where_buffers_land():
     tail apart by the buffer's alignment (tests/integration/test_determinism.py): the same
     frame, rendered with the heap shifted between calls, must come out bit for bit the same."""
     cam = PinholeCamera.from_hfov(333, 251, 100.0)
-    view = CloudLayer(500.0, 0.5, (), 150.0, 0.9, (0.0, 0.0), np.random.default_rng(2)).at(3.0)
+    view = CloudLayer(500.0, 0.5, (), 150.0, 0.9, (0.0, 0.0), np.random.default_rng(2),
+                      sun_ned=(0.4, -0.3, -0.87), shadow_light=0.35).at(3.0)  # and their shadows
     rng = np.random.default_rng(0)
     results, held = set(), []
     for _ in range(40):
@@ -104,7 +105,7 @@ def test_a_clouded_frame_does_not_depend_on_where_buffers_land():
             held.pop(int(rng.integers(0, len(held))))
         f = render(cam, mount(-70.0), POS, np.eye(3), _ground(), options=NO_HAZE, clouds=view)
         results.add(f.image.tobytes())
-    assert len(results) == 1
+    assert len(results) == 1 and f.cloud_fraction > 0.1 and f.shadow_fraction > 0.05
 
 
 def test_the_clouds_shadows_darken_the_ground_where_the_sun_is_cut():
