@@ -97,7 +97,7 @@ def ismn_fix_figure(record: RunRecord) -> FigureItem | None:
     ax.set_ylabel("fix horizontal error (m)")
     ax.grid(True, alpha=0.3)
     legend_or_note(ax, _no_fix_note(ismn), fontsize=7)
-    clouded = _cloud_share_axis(ax, ismn)
+    clouds_note = _cloud_share_axis(ax, ismn)
     v = lat[np.isfinite(lat)]
     if v.size:
         axh.hist(v, bins=min(40, max(5, v.size // 5)), color="C2", alpha=0.8)
@@ -106,12 +106,6 @@ def ismn_fix_figure(record: RunRecord) -> FigureItem | None:
         axh.legend(fontsize=7)
     axh.set_xlabel("matching latency (ms)")
     axh.set_ylabel("attempts")
-    clouds_note = ""
-    if clouded:
-        clouds_note = " Grey: the share of the ground in the camera's view that clouds hide (truth), right axis."
-    if clouded == "shadows":
-        clouds_note += " Dark line: the share that shows in the clouds' shadows (truth)."
-
     return FigureItem(
         "Scene-matching fixes and latency",
         "Left: horizontal error of each produced fix against truth (o accepted by the filter, x rejected)."
@@ -120,15 +114,15 @@ def ismn_fix_figure(record: RunRecord) -> FigureItem | None:
     )
 
 
-def _cloud_share_axis(ax, ismn: pd.DataFrame) -> bool | str:
+def _cloud_share_axis(ax, ismn: pd.DataFrame) -> str:
     """Each frame's truth cloud share on a right-hand axis of ax, where the world has clouds,
-    and the share in their shadows where they cast any; False when it drew nothing, "shadows"
-    when it drew both, else True."""
+    and the share in their shadows where they cast any; the caption's words for what it drew
+    ("" for nothing)."""
     if "truth_cloud_fraction" not in ismn.columns:
-        return False
+        return ""
     share = column(ismn, "truth_cloud_fraction")
     if not np.any(share > 0.0):
-        return False
+        return ""
     t = column(ismn, "t_s")
     axc = ax.twinx()
     axc.fill_between(t, 100.0 * share, step="mid", color="0.6", alpha=0.3, lw=0)
@@ -141,7 +135,8 @@ def _cloud_share_axis(ax, ismn: pd.DataFrame) -> bool | str:
                    color="0.4")
     ax.set_zorder(axc.get_zorder() + 1)  # the fixes over the grey, not under it
     ax.patch.set_visible(False)
-    return "shadows" if drew_shadows else True
+    note = " Grey: the share of the ground in the camera's view that clouds hide (truth), right axis."
+    return note + (" Dark line: the share that shows in the clouds' shadows (truth)." if drew_shadows else "")
 
 
 def relnav_figure(record: RunRecord) -> FigureItem | None:

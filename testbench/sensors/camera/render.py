@@ -98,9 +98,9 @@ def render(camera: PinholeCamera, mount: CameraMount, pos_ned_m, R_nb, imagery: 
     `sky`; clouds: the world's cloud sheet at this instant (world.clouds.CloudView, None:
     clear), drawn over the ground, sky and obstacles beyond it, its shadows darkening the
     ground (where the layer has a sun; the vehicles and obstacles are not shaded); a vehicle
-    beyond it is hidden where it takes half the light or more (else drawn whole). Returns a RenderedFrame; parts
-    of the view that the map does not cover are black, masked out of `valid` and counted in
-    `offmap_fraction`.
+    beyond it is hidden where it takes half the light or more (else drawn whole). Returns a
+    RenderedFrame; parts of the view that the map does not cover are black, masked out of
+    `valid` and counted in `offmap_fraction`.
     """
     roi_box = _check_roi(camera, roi)
     cam = camera if roi is None else roi_camera(camera, roi_box)
