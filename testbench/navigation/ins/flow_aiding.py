@@ -25,6 +25,7 @@ import numpy as np
 from testbench.core import geodesy
 from testbench.core.messages import CorrectionInfo, OpticalFlowSample, RadarAltSample
 from testbench.navigation.ins import measurements as meas
+from testbench.navigation.ins.ekf import chi2_threshold
 from testbench.navigation.ins.settings import OpticalFlowAiding
 
 # How long the gyro history is kept (s): a flow interval is a frame or two (0.05-0.1 s).
@@ -44,6 +45,10 @@ class FlowVelocityAiding:
         self.skipped = 0
         """Flow samples not fused: no range, too little texture, the IMU history short of the
         interval, the camera too oblique or too close to the ground."""
+        window = settings.holdout.window if settings.holdout is not None else 1
+        self._verdicts: deque[bool] = deque(maxlen=window)
+        """The gate's verdicts on the last samples (settings.holdout)."""
+        self._held_until_s = -math.inf
 
     def accumulate(self, ekf, t_prev_s: float) -> None:
         """Keep the IMU sample just propagated (ekf.t_s, since t_prev_s): its bias-corrected
@@ -115,4 +120,21 @@ class FlowVelocityAiding:
         moments = m.moments_c if s.perspective else None
         y, H, R = meas.optical_flow(ekf, flow_t / dt, R_bc, self._range[1], cov, m.lever_arm_b_m,
                                     s.depth_sigma_fraction, moments)
-        return ekf.update("optical_flow", t, y, H, R)
+        if s.holdout is None:
+            return ekf.update("optical_flow", t, y, H, R)
+        return self._fuse_or_hold(ekf, t, y, H, R)
+
+    def _fuse_or_hold(self, ekf, t: float, y, H, R) -> CorrectionInfo:
+        """Fuse through the gate, or only check while the flow is held out (settings.holdout);
+        either way the gate's verdict enters the window that decides the next hold."""
+        h = self.settings.holdout
+        if t < self._held_until_s:
+            info = ekf.check("optical_flow:held", t, y, H, R)
+            passed = bool(np.isfinite(info.nis)) and info.nis <= chi2_threshold(ekf.gate_probability, y.size)
+        else:
+            info = ekf.update("optical_flow", t, y, H, R)
+            passed = info.accepted
+        self._verdicts.append(passed)
+        if len(self._verdicts) >= h.window and self._verdicts.count(False) >= h.max_refused:
+            self._held_until_s = max(self._held_until_s, t + h.hold_s)
+        return info

@@ -161,6 +161,29 @@ class AirspeedAiding(ParamsModel):
     """Below this (on the ground, in the take-off run) nothing is fused."""
 
 
+class FlowHoldout(ParamsModel):
+    """Holding the optical flow out while the gate refuses much of it (OpticalFlowAiding.holdout).
+
+    A flow sensor that reads something else than the ground's motion (a cloud's shadow drifting
+    with the wind over a bare field, ripples on water) is refused by the gate most of the time,
+    and the samples the gate lets through are the same wrong reading that happens to fall
+    inside it: they pull the velocity. When max_refused or more of the last `window` samples
+    were refused, the flow is only checked, not fused, for hold_s seconds (kind
+    "optical_flow:held" in the corrections); the checks keep filling the window, so the hold
+    ends once the flow agrees with the filter again."""
+
+    window: int = pydantic.Field(20, ge=2)
+    max_refused: int = pydantic.Field(5, ge=1)
+    hold_s: float = pydantic.Field(3.0, gt=0)
+
+    @pydantic.model_validator(mode="after")
+    def _fits(self):
+        if self.max_refused > self.window:
+            raise ValueError(f"max_refused {self.max_refused} exceeds window {self.window} (expected at most the "
+                             f"window's samples)")
+        return self
+
+
 class OpticalFlowAiding(ParamsModel):
     """Optical-flow velocity aiding (the flow fusion of PX4's EKF2, EKF2_OF_CTRL): a downward
     flow sensor (sensor type optical_flow) measures how far the ground moved in its image over
@@ -221,6 +244,9 @@ class OpticalFlowAiding(ParamsModel):
     beam ranges the nearest ground in it, not the ground on its axis)."""
     min_depth_m: float = pydantic.Field(1.0, gt=0)
     """Below this distance to the ground (m: on the ground, landing) nothing is fused."""
+    holdout: FlowHoldout | None = None
+    """Hold the flow out while the gate refuses much of it (FlowHoldout); None: every sample
+    goes through the gate on its own."""
 
 
 class MagBias(ParamsModel):

@@ -109,3 +109,48 @@ def test_the_fusion_tells_the_filter_how_fast_its_view_passes_the_ground():
     flow.take_range(RadarAltSample(0.5, 40.0, 0.0))
     flow.correct(ekf, _sample(0.5, 0.05, [0.0, 2.0 / 40.0 * 0.05]))
     assert ekf.flow_view_rate_rps == pytest.approx(2.0 / 40.0)
+
+
+def test_a_flow_the_gate_keeps_refusing_is_held_out_until_it_agrees_again():
+    """With a hold-out (settings.FlowHoldout): after max_refused of the last `window` samples
+    were refused, the flow is only checked ("optical_flow:held"), so a wrong reading that falls
+    inside the gate now and then no longer pulls the velocity; once the flow agrees again the
+    hold ends. Without one, each sample is gated on its own."""
+    import pydantic
+
+    from testbench.navigation.ins.settings import FlowHoldout
+
+    with pytest.raises(pydantic.ValidationError, match="exceeds window"):
+        FlowHoldout(window=5, max_refused=6)
+
+    def hover(holdout):
+        ekf, _ = _filter()
+        flow = FlowVelocityAiding(OpticalFlowAiding(holdout=holdout))
+        return ekf, flow
+
+    def step(ekf, flow, t, ground_mps):
+        _fly(ekf, flow, np.zeros(3), t)
+        flow.take_range(RadarAltSample(t, 30.0, 0.0))
+        return flow.correct(ekf, _sample(t, 0.05, [0.0, ground_mps / 30.0 * 0.05]))
+
+    for holdout in (None, FlowHoldout(window=10, max_refused=3, hold_s=1.0)):
+        ekf, flow = hover(holdout)
+        t = 0.0
+        kinds = []
+        # A shadow drifting at 6 m/s: the flow reads 6 m/s (far outside the gate) with, every
+        # fourth sample, a reading of 0.3 m/s, off by a little but inside the gate.
+        for i in range(40):
+            t = round(t + 0.05, 6)
+            info = step(ekf, flow, t, 0.3 if i % 4 == 3 else 6.0)
+            kinds.append((info.kind, info.accepted))
+        took_wrong = sum(1 for k, a in kinds if k == "optical_flow" and a)
+        if holdout is None:
+            assert took_wrong == 10  # every reading inside the gate was fused
+        else:
+            assert took_wrong < 4 and any(k == "optical_flow:held" for k, _ in kinds)
+            assert not any(a for k, a in kinds if k == "optical_flow:held")  # checked, never fused
+            # The ground's true flow (hovering: none) for long enough: the hold ends.
+            for _ in range(40):
+                t = round(t + 0.05, 6)
+                info = step(ekf, flow, t, 0.0)
+            assert info.kind == "optical_flow" and info.accepted
