@@ -1,4 +1,4 @@
-"""Optical-flow velocity aiding of one navigator (settings.OpticalFlowAiding): what the filter
+"""Optical-flow velocity aiding of one navigator (flow_settings.OpticalFlowAiding): what the filter
 needs beside a flow sample to fuse it, and the fusion.
 
 A flow sample (core.messages.OpticalFlowSample) is the ground's move in the flow camera's image
@@ -26,7 +26,7 @@ from testbench.core import geodesy
 from testbench.core.messages import CorrectionInfo, OpticalFlowSample, RadarAltSample
 from testbench.navigation.ins import measurements as meas
 from testbench.navigation.ins.ekf import chi2_threshold
-from testbench.navigation.ins.settings import OpticalFlowAiding
+from testbench.navigation.ins.flow_settings import OpticalFlowAiding
 
 # How long the gyro history is kept (s): a flow interval is a frame or two (0.05-0.1 s).
 _HISTORY_S = 2.0

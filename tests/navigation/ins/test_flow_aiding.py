@@ -15,7 +15,7 @@ from testbench.core.rotations import euler_to_quat
 from testbench.navigation.ins.ekf import ErrorStateEKF
 from testbench.navigation.ins.flow_aiding import FlowVelocityAiding
 from testbench.navigation.ins.imu_noise import imu_noise_from_datasheet
-from testbench.navigation.ins.settings import OpticalFlowAiding
+from testbench.navigation.ins.flow_settings import OpticalFlowAiding
 
 R_BC = mount_rotation(0.0, -90.0, 0.0)  # looking down, image top to the nose
 ROTATION_C = np.array([[0.0, -1.05, 0.0], [1.05, 0.0, 0.0]])  # a frame reads 5 % more than its centre
@@ -118,7 +118,7 @@ def test_a_flow_the_gate_keeps_refusing_is_held_out_until_it_agrees_again():
     hold ends. Without one, each sample is gated on its own."""
     import pydantic
 
-    from testbench.navigation.ins.settings import FlowHoldout
+    from testbench.navigation.ins.flow_settings import FlowHoldout
 
     with pytest.raises(pydantic.ValidationError, match="exceeds window"):
         FlowHoldout(window=5, max_refused=6)
