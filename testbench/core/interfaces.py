@@ -121,6 +121,12 @@ class Navigator(abc.ABC):
     def estimate(self) -> NavEstimate:
         """The current estimate with covariance."""
 
+    def expect(self, t_s: float) -> None:
+        """A measurement stamped t_s (the present tick) will reach correct() later, once an
+        aid has processed it (its onboard processing time). A navigator that fuses such a
+        measurement at its own time keeps what it needs here (ins_ekf: delayed_fixes); by
+        default nothing is kept, and the late measurement is taken as it comes."""
+
 
 class NavigationAid(abc.ABC):
     """Turns raw sensor output into navigator measurements with the help of the current

@@ -18,7 +18,7 @@ from testbench.core.units import STANDARD_GRAVITY_MPS2
 from testbench.navigation.ins.ekf import chi2_threshold
 from testbench.navigation.ins.error_model import IA, IBA
 from testbench.navigation.ins.gnss_monitor import GnssInertialMonitor, GnssMonitorParams
-from testbench.navigation.ins.rollback import RollbackBuffer
+from testbench.navigation.ins.rollback import RollbackBuffer, replay, restore
 
 log = logging.getLogger(__name__)
 
@@ -95,15 +95,11 @@ class GnssSpoofGuard:
         if back is None:
             return
         state, items = back
-        for k, v in state.items():
-            setattr(nav, k, v)
+        restore(nav, state)
         self.replaying = True
         try:
             for item in items:
-                if isinstance(item, ImuSample):
-                    nav.predict(item)
-                else:
-                    nav.correct(item)
+                replay(nav, item)
         finally:
             self.replaying = False
         nav._estimate = None

@@ -30,6 +30,7 @@ from testbench.navigation.fix_quality import appearance_gain
 from testbench.navigation.ins import measurements as meas
 from testbench.navigation.ins.air_aiding import AirRelativeAiding, wind_settings
 from testbench.navigation.ins.consistency import error_state
+from testbench.navigation.ins.delayed import DelayedFixes
 from testbench.navigation.ins.ekf import ErrorStateEKF
 from testbench.navigation.ins.error_model import IA, IBA, IBB, IBG, IDS, IFX, IGN, IP, IV, IW
 from testbench.navigation.ins.flow_aiding import FlowVelocityAiding
@@ -129,6 +130,8 @@ class InsEkfNavigator(Navigator):
         """Rotor-drag and airspeed aiding (air_aiding.py)."""
         self.flow = None if params.optical_flow is None else FlowVelocityAiding(params.optical_flow)
         """Optical-flow aiding (flow_aiding.py); None: off."""
+        self.delayed = DelayedFixes(params.delayed_fixes, self.ROLLBACK_ATTRS + ("_fix_refusals",))
+        """How fixes that come late are fused (delayed.py)."""
         # The last estimate() (None: the filter moved since). Aids, the controller and the
         # recorder all ask for it at a tick; in a ten-vehicle swarm building it each time was
         # a tenth of the run.
@@ -215,38 +218,28 @@ class InsEkfNavigator(Navigator):
             self.flow.accumulate(self.ekf, t_prev_s)
         if self.air.drag_mu_per_s is not None:
             self.air.accumulate_drag(self.ekf, float(imu.t_s), imu.f_ib_b_mps2)
+        self.delayed.record(imu)
+
+    def expect(self, t_s: float) -> None:
+        """A position fix stamped t_s (s; the present tick) will come later, once processed:
+        keep what its fusion then needs (Params.delayed_fixes; delayed.py)."""
+        self._require_init()
+        self.delayed.expect(self, t_s)
 
     def correct(self, measurement) -> CorrectionInfo | None:
         self._require_init()
         self._estimate = None
         p, ekf = self.params, self.ekf
         t = float(getattr(measurement, "t_s", ekf.t_s))
+        late = isinstance(measurement, PositionFix) and self.delayed.is_late(self, measurement)
         if self._gnss_guard is not None:
             self._gnss_guard.record(measurement)
+        if not late:
+            self.delayed.record(measurement)
         if isinstance(measurement, PositionFix):
             if not p.use_position_fix:
                 return None
-            if (ekf.i_cam is not None and measurement.image_pose_cov is not None
-                    and self._boresight_needs_image_pose()):
-                return self._correct_image_pose(measurement, t)
-            # A fix that declares how it leaned on our attitude is fused with that coupling
-            # (H_phi = -M) and its covariance given the attitude; otherwise as independent.
-            M = measurement.att_sensitivity_m_per_rad if p.fix_attitude_coupling else None
-            base = measurement.cov_ned_m2 if M is None else measurement.cov_given_att_ned_m2
-            white = self._white_fix_cov(base)
-            y, H, R = meas.position_ned(ekf, measurement.pos_ned_m, white, self.ctx.origin, M,
-                                        appearance_gain=self.appearance_gain(measurement.quality),
-                                        vel_lag_s=measurement.vel_lag_s)
-            info = self._fuse_fix(f"position_fix:{measurement.source}", t, y, H, R)
-            if p.use_fix_heading and measurement.heading_rad is not None and info is not None and info.accepted:
-                # The image-only heading of the same solve: nearly uncorrelated with its centre in
-                # a nadir view (a rotation about the vertical through the centre moves no point
-                # near it), so fused as a measurement of its own after the position; only from a
-                # fix the gate let through (a false match's heading is as false as its position).
-                heading = ekf.update(f"heading_fix:{measurement.source}", t,
-                                     *meas.fix_heading(ekf, measurement.heading_rad, measurement.heading_sigma_rad))
-                return info, heading
-            return info
+            return self.delayed.fuse(self, measurement) if late else self.fuse_fix_now(measurement)
         if isinstance(measurement, BaroSample):
             if not p.use_baro:
                 return None
@@ -267,6 +260,33 @@ class InsEkfNavigator(Navigator):
             self._airspeed = float(measurement.airspeed_mps)
             return self.air.correct_airspeed(self.ekf, self._airspeed, t) if p.airspeed_aiding is not None else None
         return None
+
+    def fuse_fix_now(self, measurement: PositionFix):
+        """A position fix fused at the filter's present time (a fix of now, or one the delayed
+        fixes' handling has made one: delayed.py); its CorrectionInfo, or (position, heading)."""
+        p, ekf = self.params, self.ekf
+        t = float(measurement.t_s)
+        if (ekf.i_cam is not None and measurement.image_pose_cov is not None
+                and self._boresight_needs_image_pose()):
+            return self._correct_image_pose(measurement, t)
+        # A fix that declares how it leaned on our attitude is fused with that coupling
+        # (H_phi = -M) and its covariance given the attitude; otherwise as independent.
+        M = measurement.att_sensitivity_m_per_rad if p.fix_attitude_coupling else None
+        base = measurement.cov_ned_m2 if M is None else measurement.cov_given_att_ned_m2
+        white = self._white_fix_cov(base)
+        y, H, R = meas.position_ned(ekf, measurement.pos_ned_m, white, self.ctx.origin, M,
+                                    appearance_gain=self.appearance_gain(measurement.quality),
+                                    vel_lag_s=measurement.vel_lag_s)
+        info = self._fuse_fix(f"position_fix:{measurement.source}", t, y, H, R)
+        if p.use_fix_heading and measurement.heading_rad is not None and info is not None and info.accepted:
+            # The image-only heading of the same solve: nearly uncorrelated with its centre in
+            # a nadir view (a rotation about the vertical through the centre moves no point
+            # near it), so fused as a measurement of its own after the position; only from a
+            # fix the gate let through (a false match's heading is as false as its position).
+            heading = ekf.update(f"heading_fix:{measurement.source}", t,
+                                 *meas.fix_heading(ekf, measurement.heading_rad, measurement.heading_sigma_rad))
+            return info, heading
+        return info
 
     def estimate(self) -> NavEstimate:
         """Position in NED at the scenario origin (ctx.origin); velocity, attitude and their
@@ -330,7 +350,14 @@ class InsEkfNavigator(Navigator):
 
     def check_aids(self, aids: list, where: str) -> None:
         """Raise InputError when the boresight states (Params.camera_boresight) have no scene
-        matcher to learn them from: exactly one aid whose fixes carry the image-only pose."""
+        matcher to learn them from (exactly one aid whose fixes carry the image-only pose), or
+        when fixes that come late would be replayed over the spoofing monitor's own rewinds."""
+        late = [a for a in aids if getattr(getattr(a, "params", None), "latency_s", 0.0) > 0.0]
+        if late and self._gnss_guard is not None and self.params.delayed_fixes == "replay":
+            raise InputError(
+                f"{where}.params.delayed_fixes: 'replay' cannot run beside the GNSS spoofing monitor (gnss_monitor), "
+                "whose rewinds replay the same inputs; with an aid's latency_s > 0 expected delayed_fixes 'carry' or "
+                "'as_current'")
         if self.ekf.i_cam is None:
             return
         offering = [a for a in aids if getattr(a, "offers_image_pose", False)]

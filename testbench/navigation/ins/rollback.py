@@ -16,6 +16,8 @@ import copy
 from collections import deque
 from typing import Any
 
+from testbench.core.messages import ImuSample
+
 
 class RollbackBuffer:
     """Snapshots (t_s, state) with the index of the last input before each, and the inputs
@@ -55,3 +57,20 @@ class RollbackBuffer:
         self._snapshots.clear()
         self._inputs.clear()
         return state, items
+
+
+def restore(nav, state: dict[str, Any]) -> None:
+    """Set a navigator's attributes back to a snapshot's (name -> value); its cached estimate
+    goes with them."""
+    for k, v in state.items():
+        setattr(nav, k, v)
+    nav._estimate = None
+
+
+def replay(nav, item: Any) -> None:
+    """One recorded input again: an ImuSample through nav.predict, a measurement through
+    nav.correct."""
+    if isinstance(item, ImuSample):
+        nav.predict(item)
+    else:
+        nav.correct(item)

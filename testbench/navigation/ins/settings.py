@@ -363,6 +363,12 @@ class InsEkfParams(ParamsModel):
     use_mag: bool = True
     mag_mode: Literal["heading", "vector"] = "heading"
     use_position_fix: bool = True
+    delayed_fixes: Literal["replay", "carry", "as_current"] = "replay"
+    """How a position fix that reaches the filter after its time is fused (an aid's onboard
+    processing time, IsmnAid latency_s; delayed.py): replay (exact: back to the state at the
+    fix's time, fuse, replay the IMU and the other measurements since), carry (first order: the
+    fix's innovation at its time fused now, with the lag term of the velocity error), or
+    as_current (unchanged, as a measurement of now: the naive filter, for contrast)."""
     fix_attitude_coupling: bool = True
     """Fuse a position fix that leaned on this filter's attitude (PositionFix.
     att_sensitivity_m_per_rad: the scene matcher's pose solve takes the INS attitude as its
