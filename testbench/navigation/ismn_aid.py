@@ -9,6 +9,11 @@ that the engine fills, but two: truth_cloud_fraction, the share of the ground in
 clouds hide, and truth_shadow_fraction, the share that shows in their shadows, are copied from
 the renderer's frame (CameraFrame.cloud_fraction, shadow_fraction) for scoring; the pipeline
 is given the pixels alone.
+
+Onboard processing time (`latency_s`): a fix reaches the navigator latency_s after the frame's
+exposure, stamped with the exposure time; the engine holds it until then (Engine._deliver) and
+the navigator fuses it as a delayed measurement (InsEkfParams.delayed_fixes). One processor:
+a frame that comes while the one before is still being processed is not taken ("busy").
 """
 
 from __future__ import annotations
@@ -24,7 +29,7 @@ from testbench.core.interfaces import BuildContext, NavigationAid
 from testbench.core.messages import NavEstimate, PositionFix
 from testbench.core.registry import ParamsModel, build, register
 from testbench.navigation.fix_columns import position_fix_columns
-from testbench.navigation.ismn import IsmnParams, IsmnPipeline
+from testbench.navigation.ismn import IsmnDiagnostics, IsmnParams, IsmnPipeline
 
 _NAN = float("nan")
 
@@ -45,6 +50,8 @@ class IsmnAttempt:
     keep_example: bool
     cloud_fraction: float = 0.0  # the renderer's (truth), for the record only
     shadow_fraction: float = 0.0  # the same
+    deliver_t_s: float | None = None
+    """When the fix reaches the navigator (s; None: at t_s). The engine holds it until then."""
 
     def event_rows(self, vehicle_id: str) -> list[tuple[str, dict]]:
         d = self.diag
@@ -61,6 +68,7 @@ class IsmnAttempt:
             truth_north_m=_NAN, truth_east_m=_NAN, truth_down_m=_NAN, truth_roll_rad=_NAN, truth_height_agl_m=_NAN,
             truth_cloud_fraction=float(self.cloud_fraction),
             truth_shadow_fraction=float(self.shadow_fraction),
+            delivered_t_s=float(self.deliver_t_s if self.deliver_t_s is not None else self.t_s) if fix is not None else _NAN,
         )
         return [("ismn", row)]
 
@@ -79,7 +87,10 @@ class IsmnAid(NavigationAid):
 
     Params: camera (the sensor's name), matcher ({type, params}: ncc, phase, orb, sift or
     "module:Class"), pipeline (IsmnParams: window sigma, working gsd, quality floor ...),
-    every_n_frames (use one frame in N), example_every_s (keep images for the report).
+    every_n_frames (use one frame in N), example_every_s (keep images for the report),
+    latency_s (the onboard processing time, s: each fix reaches the navigator that long after its
+    frame's exposure, and frames that come while one is in processing are skipped as "busy"; 0:
+    at once, the default, as the pipeline's own 35-50 ms on a desktop core would be).
     """
 
     class Params(ParamsModel):
@@ -88,6 +99,7 @@ class IsmnAid(NavigationAid):
         pipeline: dict = {}
         every_n_frames: int = pydantic.Field(1, ge=1)
         example_every_s: float = pydantic.Field(60.0, gt=0)
+        latency_s: float = pydantic.Field(0.0, ge=0, le=10.0)
 
     def __init__(self, params: Params, *, ctx: BuildContext, sensors: dict, onboard: dict, **_: Any):
         self.params = params
@@ -112,6 +124,8 @@ class IsmnAid(NavigationAid):
         self.same_raster = bool(onboard.get("same_raster", False))
         self._n = 0
         self._next_example_t = 0.0
+        self._busy_until_s = -float("inf")
+        """Exposure time + latency_s of the last frame the processor took (s)."""
 
     @property
     def offers_image_pose(self) -> bool:
@@ -126,10 +140,21 @@ class IsmnAid(NavigationAid):
         self._n += 1
         if (self._n - 1) % self.params.every_n_frames:
             return [], None
-        fix, diag = self.pipeline.process(measurement.image, measurement.t_s, estimate)
+        t_s = float(measurement.t_s)
+        latency = self.params.latency_s
+        if t_s < self._busy_until_s - 1e-9:
+            # The processor is still on an earlier frame: this one is not taken (nor counted as
+            # an attempt: the fix rate is the matcher's).
+            diag = IsmnDiagnostics(t_s, {}, reason=f"busy: the frame of t={self._busy_until_s - latency:.2f} s "
+                                                   f"is still in processing ({latency:g} s)", attempted=False)
+            return [], IsmnAttempt(t_s, None, diag, self.same_raster, False)
+        fix, diag = self.pipeline.process(measurement.image, t_s, estimate)
+        if latency > 0 and getattr(diag, "attempted", True):
+            self._busy_until_s = t_s + latency
         keep = measurement.t_s >= self._next_example_t and getattr(diag, "ortho", None) is not None
         if keep:
             self._next_example_t = measurement.t_s + self.params.example_every_s
         return ([fix] if fix is not None else []), IsmnAttempt(measurement.t_s, fix, diag, self.same_raster, keep,
                                                                float(getattr(measurement, "cloud_fraction", 0.0)),
-                                                               float(getattr(measurement, "shadow_fraction", 0.0)))
+                                                               float(getattr(measurement, "shadow_fraction", 0.0)),
+                                                               deliver_t_s=t_s + latency if latency > 0 else None)

@@ -33,7 +33,7 @@ KEY_METRICS = (
     "nav.gnss_sky.hdop.p95", "nav.gnss_sky.hdop_open_sky_median",
     "control.altitude_error_m.rms", "control.cross_track_error_m.rms", "control.airspeed_error_mps.rms",
     "control.bank_max_deg",
-    "ismn.fix_rate", "ismn.accept_rate", "ismn.latency_ms.mean", "ismn.latency_ms.p95",
+    "ismn.fix_rate", "ismn.accept_rate", "ismn.latency_ms.mean", "ismn.latency_ms.p95", "ismn.delivery_delay_s",
     "ismn.all.horizontal_error_m.mean", "ismn.smooth.horizontal_error_m.mean", "ismn.turning.horizontal_error_m.mean",
     "ismn.all.horizontal_error_pct_agl.mean",
     "tan.fix_rate", "tan.window_error_m.mean", "tan.horizontal_error_m.mean", "tan.horizontal_nees.mean_per_dof",

@@ -67,12 +67,19 @@ def compute_ismn(record: RunRecord) -> IsmnMetrics | None:
     turning = event_turning(record, ismn)
     latency = np.where(attempted, column(ismn, "latency_ms"), np.nan)
     n_att, n_fix, n_acc = int(attempted.sum()), int(fix.sum()), int(accepted.sum())
+    # A fix still in processing when the run ended never reached the filter (delivered_t_s
+    # NaN): not a refusal. Records from before the column: every fix was delivered at once.
+    delivered = column(ismn, "delivered_t_s") if "delivered_t_s" in ismn.columns else np.where(fix, column(ismn, "t_s"), np.nan)
+    reached = fix & np.isfinite(delivered)
+    delay = delivered[reached] - column(ismn, "t_s")[reached]
     return IsmnMetrics(
         attempts=n_att,
         fixes=n_fix,
         accepted=n_acc,
         fix_rate=rate(n_fix, n_att),
-        accept_rate=rate(n_acc, n_fix),
+        accept_rate=rate(n_acc, int(reached.sum())),
+        delivery_delay_s=float(delay.mean()) if delay.size else None,
+        busy_frames=int(ismn["reason"].astype(str).str.startswith("busy").sum()) if "reason" in ismn.columns else 0,
         latency_ms=error_stats(latency),
         all=_ismn_phase(eh, pct, fix),
         smooth=_ismn_phase(eh, pct, fix & ~turning),

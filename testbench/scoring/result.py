@@ -221,8 +221,12 @@ class IsmnClouds(_Section):
 class IsmnMetrics(_Section):
     """Inertial-aided scene matching.
 
-    fix_rate = fixes / attempts; accept_rate = fixes accepted by the filter / fixes;
-    latency_ms: per attempt; all / smooth / turning: error of the produced fixes;
+    fix_rate = fixes / attempts; accept_rate = fixes accepted by the filter / fixes that
+    reached it (one still in processing at the run's end did not); latency_ms: per attempt
+    (the pipeline's own compute time on this machine); delivery_delay_s: the mean time from a
+    frame's exposure to its fix reaching the filter (the aid's modelled onboard processing time,
+    IsmnAid latency_s; 0: at once); busy_frames: frames the processor skipped because it was
+    still on an earlier one (not attempts); all / smooth / turning: error of the produced fixes;
     longest_gap_s: the longest time between two accepted fixes, or from the last one to the
     last attempt (s; from the first accepted fix on); clouds: the frames under cloud (only
     where the world has clouds).
@@ -234,6 +238,8 @@ class IsmnMetrics(_Section):
     fix_rate: float | None = None
     accept_rate: float | None = None
     latency_ms: ErrorStats | None = None
+    delivery_delay_s: float | None = None
+    busy_frames: int = 0
     all: IsmnPhase | None = None
     smooth: IsmnPhase | None = None
     turning: IsmnPhase | None = None

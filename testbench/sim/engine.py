@@ -5,7 +5,9 @@ control, the recorder) runs every N ticks (N an integer: rates that do not divid
 rate are rejected when the vehicle is built). At a tick where anything runs, for every vehicle
 in scenario order:
   1. sensors sample the truth at the tick (IMU first, so the navigator predicts before it
-     corrects); navigation aids turn raw outputs into navigator measurements;
+     corrects); navigation aids turn raw outputs into navigator measurements; a measurement an
+     aid makes late (its onboard processing time: IsmnAid latency_s) is held, and reaches the
+     navigator at the first tick at or after it is due, stamped with the time it was taken;
   2. the controller turns the navigator's estimate into the command held until its next tick;
   3. the recorder writes truth and estimate side by side.
 Then every vehicle's dynamics advance to the next tick where anything runs (JSBSim steps in a
@@ -208,17 +210,82 @@ class Engine:
             if self.frame_sink is not None and hasattr(m, "image"):
                 self.frame_sink(v.id, slot.name, m)
             self._deliver(v, m)
+        if v.in_flight:
+            self._land(v, t_s, final=k >= self.n_ticks)
 
     def _deliver(self, v: VehicleRuntime, m: Any) -> None:
         """Give a measurement to the aids that want it, then everything to the navigator; then
-        record what the aids did (with truth filled in here, the only place it meets them)."""
+        record what the aids did (with truth filled in here, the only place it meets them).
+        What an aid makes late (its attempt's deliver_t_s after the measurement's time) is held
+        in v.in_flight instead, its rows filled with the truth of now, when its frame was taken."""
         outputs = [m]
         attempts = []
         for aid in v.aids:
             if aid.accepts(m):
                 produced, diag = aid.process(m, v.navigator.estimate())
+                due_s = getattr(diag, "deliver_t_s", None)
+                if due_s is not None and due_s > float(m.t_s) + 1e-9:
+                    self._hold(v, due_s, produced, diag)
+                    continue
+                if diag is not None and not produced and v.in_flight:
+                    # An attempt without output (a frame skipped while another is in
+                    # processing) waits behind the one in flight: rows stay in frame order.
+                    self._hold(v, v.in_flight[-1][0], [], diag)
+                    continue
                 outputs.extend(produced)
                 attempts.append((diag, produced))
+        self._fuse(v, outputs, attempts)
+
+    def _hold(self, v: VehicleRuntime, due_s: float, produced: list, diag: Any) -> None:
+        """Keep an aid's late output until due_s: its event rows made now (truth of now), the
+        navigator told to keep what it needs to fuse measurements of this time later."""
+        rows = []
+        for table, row in diag.event_rows(v.id):
+            self._fill_truth(row, v)
+            rows.append((table, row))
+        for name, arrays in getattr(diag, "artifacts", lambda: [])():
+            self.recorder.artifact(name, arrays)
+        expect = getattr(v.navigator, "expect", None)  # ("module:Class" navigators may lack it)
+        for out in produced if expect is not None else ():
+            expect(float(out.t_s))
+        v.in_flight.append((float(due_s), produced, rows))
+        v.in_flight.sort(key=lambda item: item[0])  # stable: equal due times keep their order
+
+    def _land(self, v: VehicleRuntime, t_s: float, final: bool) -> None:
+        """Give the navigator the held outputs due by t_s, then record their rows with its
+        verdicts. At the run's last tick the rest are recorded as never fused (accepted False,
+        delivered_t_s NaN, reason 'in flight at the end of the run')."""
+        while v.in_flight and (final or v.in_flight[0][0] <= t_s + 1e-9):
+            due_s, produced, rows = v.in_flight.pop(0)
+            infos = self._correct_all(v, produced) if due_s <= t_s + 1e-9 else None
+            verdicts = None if infos is None else [infos[id(p)].accepted for p in produced if id(p) in infos]
+            for table, row in rows:
+                if "accepted" in row and row["accepted"] is None:
+                    row["accepted"] = bool(verdicts) and all(verdicts)
+                if infos is None and row.get("fix"):
+                    row["reason"] = "in flight at the end of the run"
+                    if "delivered_t_s" in row:
+                        row["delivered_t_s"] = math.nan
+                self.recorder.event(table, **row)
+
+    def _fuse(self, v: VehicleRuntime, outputs: list, attempts: list) -> None:
+        """outputs to the navigator, then the attempts' rows with its verdicts and truth."""
+        infos = self._correct_all(v, outputs)
+        for diag, produced in attempts:
+            if diag is None:
+                continue
+            verdicts = [infos[id(p)].accepted for p in produced if id(p) in infos]
+            for table, row in diag.event_rows(v.id):
+                if "accepted" in row and row["accepted"] is None:
+                    row["accepted"] = bool(verdicts) and all(verdicts)
+                self._fill_truth(row, v)
+                self.recorder.event(table, **row)
+            for name, arrays in getattr(diag, "artifacts", lambda: [])():
+                self.recorder.artifact(name, arrays)
+
+    def _correct_all(self, v: VehicleRuntime, outputs: list) -> dict[int, Any]:
+        """Each output to the navigator in order, its corrections recorded; id(output) -> the
+        first correction (the measurement's own verdict)."""
         infos: dict[int, Any] = {}
         for out in outputs:
             if isinstance(out, GnssFix):
@@ -232,17 +299,7 @@ class Engine:
             infos[id(out)] = several[0]
             for one in several:
                 self.recorder.correction(v.id, one)
-        for diag, produced in attempts:
-            if diag is None:
-                continue
-            verdicts = [infos[id(p)].accepted for p in produced if id(p) in infos]
-            for table, row in diag.event_rows(v.id):
-                if "accepted" in row and row["accepted"] is None:
-                    row["accepted"] = bool(verdicts) and all(verdicts)
-                self._fill_truth(row, v)
-                self.recorder.event(table, **row)
-            for name, arrays in getattr(diag, "artifacts", lambda: [])():
-                self.recorder.artifact(name, arrays)
+        return infos
 
     def _fill_truth(self, row: dict[str, Any], v: VehicleRuntime) -> None:
         """Fill an aid's truth placeholders (truth_* columns) from the dynamics at this tick:

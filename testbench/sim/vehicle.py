@@ -65,6 +65,9 @@ class VehicleRuntime:
     last_gnss_t_s: float = -math.inf
     gnss_timeout_s: float = math.inf
     extras: dict = field(default_factory=dict)
+    in_flight: list = field(default_factory=list)
+    """Aid outputs made late, not yet given to the navigator: (due time s, outputs, their event
+    rows) in order of due time (Engine._hold)."""
 
     def command_values(self) -> tuple[float, ...]:
         c = self.command

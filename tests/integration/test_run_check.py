@@ -88,3 +88,15 @@ def test_check_refuses_clouds_whose_sun_does_not_rise():
     for fix in ("world.clouds.shadow_light=1.0", "world.clouds={base_m: 500.0, sun_azimuth_deg: 180.0, sun_elevation_deg: 5.0}"):
         ok = _run(scenario, "--check", *arctic, "--set", fix)
         assert ok.returncode == 0, ok.stderr
+
+
+def test_check_refuses_replayed_late_fixes_beside_the_spoofing_monitor():
+    """Late fixes replayed (delayed_fixes replay, the default) and the spoofing monitor's rewinds
+    would replay the same inputs twice: the check names the key and what to use instead."""
+    scenario = str(SCENARIOS / "paper_ismn_800m.yaml")
+    both = ["--set", "vehicles.uav0.aids.ismn.latency_s=0.5", "--set", "vehicles.uav0.navigation.params.gnss_monitor={}"]
+    proc = _run(scenario, "--check", *both)
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert "delayed_fixes" in proc.stderr and "'carry'" in proc.stderr and "Traceback" not in proc.stderr
+    ok = _run(scenario, "--check", *both, "--set", "vehicles.uav0.navigation.params.delayed_fixes=carry")
+    assert ok.returncode == 0, ok.stderr
