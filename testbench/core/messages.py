@@ -248,6 +248,10 @@ class NavEstimate:
         error of the scene-matching camera (body axes, rad: its true mounting is Exp(b) R_bc)
         and its covariance, when the navigator estimates it, else None. A scene matcher seeds
         its solve with the mounting corrected by it.
+    camera_time_offset_s, var_camera_time_offset_s2: the estimated time offset of the
+        scene-matching camera (its frames' stamp minus their exposure, s) and its variance, when
+        the navigator estimates it, else None. A scene matcher takes the pose that long before a
+        frame's stamp as its prior.
     """
 
     t_s: float
@@ -264,6 +268,8 @@ class NavEstimate:
     cov_wind_ne_m2s2: np.ndarray | None = None
     camera_boresight_b_rad: np.ndarray | None = None
     cov_camera_boresight_rad2: np.ndarray | None = None
+    camera_time_offset_s: float | None = None
+    var_camera_time_offset_s2: float | None = None
 
 
 @dataclass(frozen=True, slots=True)

@@ -5,10 +5,12 @@ It wraps `ismn.IsmnPipeline` for the engine: it takes the camera's intrinsics an
 the camera sensor, the reference map and elevation the vehicle carries (never the imagery the
 camera renders, unless the scenario says so and is labelled same-raster), and reports each
 attempt as a row of events/ismn.parquet. Truth columns of those rows are left as placeholders
-that the engine fills, but two: truth_cloud_fraction, the share of the ground in view that
-clouds hide, and truth_shadow_fraction, the share that shows in their shadows, are copied from
-the renderer's frame (CameraFrame.cloud_fraction, shadow_fraction) for scoring; the pipeline
-is given the pixels alone.
+that the engine fills, but these: truth_cloud_fraction, the share of the ground in view that
+clouds hide, truth_shadow_fraction, the share that shows in their shadows, and
+truth_exposure_{north,east,down}_m, where the frame was truly taken from (its exposure: the
+tick's position unless the camera's clock is off), are copied from the renderer's frame
+(CameraFrame.cloud_fraction, shadow_fraction, exposure_pos_ned_m) for scoring; the pipeline is
+given the pixels alone.
 
 Onboard processing time (`latency_s`): a fix reaches the navigator latency_s after the frame's
 exposure, stamped with the exposure time; the engine holds it until then (Engine._deliver) and
@@ -18,6 +20,7 @@ a frame that comes while the one before is still being processed is not taken ("
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
@@ -28,6 +31,7 @@ from testbench.core.errors import InputError
 from testbench.core.interfaces import BuildContext, NavigationAid
 from testbench.core.messages import NavEstimate, PositionFix
 from testbench.core.registry import ParamsModel, build, register
+from testbench.core.rotations import quat_multiply, quat_to_euler, rotvec_to_quat
 from testbench.navigation.fix_columns import position_fix_columns
 from testbench.navigation.ismn import IsmnDiagnostics, IsmnParams, IsmnPipeline
 
@@ -50,6 +54,7 @@ class IsmnAttempt:
     keep_example: bool
     cloud_fraction: float = 0.0  # the renderer's (truth), for the record only
     shadow_fraction: float = 0.0  # the same
+    exposure_pos_ned_m: np.ndarray | None = None  # the same: where the frame was taken from
     deliver_t_s: float | None = None
     """When the fix reaches the navigator (s; None: at t_s). The engine holds it until then."""
 
@@ -68,6 +73,7 @@ class IsmnAttempt:
             truth_north_m=_NAN, truth_east_m=_NAN, truth_down_m=_NAN, truth_roll_rad=_NAN, truth_height_agl_m=_NAN,
             truth_cloud_fraction=float(self.cloud_fraction),
             truth_shadow_fraction=float(self.shadow_fraction),
+            **_exposure_columns(self.exposure_pos_ned_m),
             delivered_t_s=float(self.deliver_t_s if self.deliver_t_s is not None else self.t_s) if fix is not None else _NAN,
         )
         return [("ismn", row)]
@@ -148,7 +154,7 @@ class IsmnAid(NavigationAid):
             diag = IsmnDiagnostics(t_s, {}, reason=f"busy: the frame of t={self._busy_until_s - latency:.2f} s "
                                                    f"is still in processing ({latency:g} s)", attempted=False)
             return [], IsmnAttempt(t_s, None, diag, self.same_raster, False)
-        fix, diag = self.pipeline.process(measurement.image, t_s, estimate)
+        fix, diag = self.pipeline.process(measurement.image, t_s, prior_at_exposure(estimate))
         if latency > 0 and getattr(diag, "attempted", True):
             self._busy_until_s = t_s + latency
         keep = measurement.t_s >= self._next_example_t and getattr(diag, "ortho", None) is not None
@@ -157,4 +163,26 @@ class IsmnAid(NavigationAid):
         return ([fix] if fix is not None else []), IsmnAttempt(measurement.t_s, fix, diag, self.same_raster, keep,
                                                                float(getattr(measurement, "cloud_fraction", 0.0)),
                                                                float(getattr(measurement, "shadow_fraction", 0.0)),
-                                                               deliver_t_s=t_s + latency if latency > 0 else None)
+                                                               deliver_t_s=t_s + latency if latency > 0 else None,
+                                                               exposure_pos_ned_m=getattr(measurement, "exposure_pos_ned_m", None))
+
+
+def _exposure_columns(pos_ned_m) -> dict[str, float]:
+    """truth_exposure_{north,east,down}_m of a row: where the frame was truly taken from (NaN
+    when the frame does not say)."""
+    p = (_NAN, _NAN, _NAN) if pos_ned_m is None else tuple(float(x) for x in pos_ned_m)
+    return dict(truth_exposure_north_m=p[0], truth_exposure_east_m=p[1], truth_exposure_down_m=p[2])
+
+
+def prior_at_exposure(estimate: NavEstimate) -> NavEstimate:
+    """The estimate carried back to the frame's exposure when the navigator estimates the
+    camera's time offset td (NavEstimate.camera_time_offset_s: the stamp minus the exposure):
+    the position by -v td, the attitude by the body rate over -td (covariances as they are);
+    otherwise the estimate itself. The scene matcher's prior is then the pose the image was
+    taken from, as the navigator knows it (measurements.TimeOffsetTerms)."""
+    td = estimate.camera_time_offset_s
+    if not td:
+        return estimate
+    q = quat_multiply(np.asarray(estimate.q_nb_wxyz, float), rotvec_to_quat(-td * np.asarray(estimate.omega_b_rps, float)))
+    return dataclasses.replace(estimate, pos_ned_m=np.asarray(estimate.pos_ned_m, float) - td * np.asarray(estimate.vel_ned_mps, float),
+                               q_nb_wxyz=q, rpy_rad=quat_to_euler(q))

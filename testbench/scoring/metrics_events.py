@@ -33,10 +33,15 @@ def fix_errors_ne_m(table: pd.DataFrame) -> np.ndarray:
 
 
 def ismn_fix_errors(ismn: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
-    """(horizontal error (m), error as % of AGL) of each row's fix vs truth, shapes (n,).
+    """(horizontal error (m), error as % of AGL) of each row's fix vs truth, shapes (n,): the
+    truth where the frame was taken from (truth_exposure_*; a camera whose clock is off took it
+    before or after its stamp), or, in records without those columns, the truth at its stamp.
 
     NaN on rows without a fix.
     """
+    if "truth_exposure_north_m" in ismn.columns:
+        ismn = ismn.assign(truth_north_m=column(ismn, "truth_exposure_north_m"),
+                           truth_east_m=column(ismn, "truth_exposure_east_m"))
     eh = np.hypot(*fix_errors_ne_m(ismn).T)
     agl = column(ismn, "truth_height_agl_m")
     with np.errstate(divide="ignore", invalid="ignore"):

@@ -16,7 +16,9 @@ import pandas as pd
 from testbench.core.rotations import dcm_to_quat, euler_to_dcm, quat_to_rotvec, wrap_pi
 from testbench.scoring.phases import telemetry_turning
 from testbench.scoring.record_io import RunRecord, column
-from testbench.scoring.result import CameraBoresightStats, GnssSkyStats, NavMetrics, NavSubset, NisStats, SpoofedNav
+from testbench.scoring.result import (
+    CameraBoresightStats, CameraTimeOffsetStats, GnssSkyStats, NavMetrics, NavSubset, NisStats, SpoofedNav,
+)
 from testbench.scoring.stats import ChiSquareStats, chi_square_stats, error_stats
 
 MIN_AGL_FOR_PCT_M = 1.0  # below this the vehicle is on the ground: % of AGL is meaningless
@@ -201,6 +203,35 @@ def camera_boresight_stats(record: RunRecord, err: np.ndarray, sig: np.ndarray) 
                                 final_sigma_deg=max(sigmas) if sigmas else None)
 
 
+def time_offset_errors_s(record: RunRecord) -> tuple[np.ndarray, np.ndarray] | None:
+    """((n,) estimated minus true camera time offset, (n,) claimed sigma), s, NaN on rows
+    without an estimate; None when the record has no time offset columns or no estimate. The
+    truth: run.json camera_time_offset_s of the camera camera_time_offset_estimated names."""
+    tel = record.telemetry
+    if "nav_camera_time_offset_s" not in tel.columns:
+        return None
+    est, sig = column(tel, "nav_camera_time_offset_s"), column(tel, "nav_sigma_camera_time_offset_s")
+    truth = np.zeros_like(est)
+    offsets = record.run_info.get("camera_time_offset_s") or {}
+    vehicles = tel["vehicle_id"].to_numpy()
+    for vid, camera in (record.run_info.get("camera_time_offset_estimated") or {}).items():
+        truth[vehicles == vid] = float((offsets.get(vid) or {}).get(camera, 0.0))
+    err = est - truth
+    return (err, sig) if np.isfinite(err).any() else None
+
+
+def camera_time_offset_stats(record: RunRecord, err: np.ndarray, sig: np.ndarray) -> CameraTimeOffsetStats:
+    """CameraTimeOffsetStats of the time offset errors err (n,) and sigmas sig (n,) (s)."""
+    err_ms, sig_ms = 1e3 * np.abs(err), 1e3 * sig
+    ok = np.isfinite(err_ms)
+    denied = denied_mask(record) & ok
+    vehicles = record.telemetry["vehicle_id"].to_numpy()
+    last = [np.flatnonzero((vehicles == vid) & ok)[-1] for vid in np.unique(vehicles[ok])]
+    return CameraTimeOffsetStats(error_ms=error_stats(err_ms[denied] if denied.any() else err_ms[ok]),
+                                 final_error_ms=max(float(err_ms[i]) for i in last) if last else None,
+                                 final_sigma_ms=max(float(sig_ms[i]) for i in last) if last else None)
+
+
 def _subset(e3: np.ndarray, eh: np.ndarray, pct: np.ndarray, dur: np.ndarray, mask: np.ndarray) -> NavSubset | None:
     if not mask.any():
         return None
@@ -319,6 +350,11 @@ def compute_nav(record: RunRecord) -> NavMetrics | None:
         s = chi_square_stats(_diag_nees(*boresight), 3)
         if s is not None:
             nees["camera_boresight"] = s
+    time_offset = time_offset_errors_s(record)
+    if time_offset is not None:
+        s = chi_square_stats(_diag_nees(time_offset[0][:, None], time_offset[1][:, None]), 1)
+        if s is not None:
+            nees["camera_time_offset"] = s
 
     return NavMetrics(
         position_error_m=error_stats(np.linalg.norm(e3, axis=1)),
@@ -335,6 +371,7 @@ def compute_nav(record: RunRecord) -> NavMetrics | None:
         wind_error_mps=None if wind_err is None else error_stats(np.hypot(wind_err[:, 0], wind_err[:, 1])),
         gnss_sky=gnss_sky_stats(record),
         camera_boresight=None if boresight is None else camera_boresight_stats(record, *boresight),
+        camera_time_offset=None if time_offset is None else camera_time_offset_stats(record, *time_offset),
     )
 
 

@@ -95,6 +95,19 @@ class CameraBoresightStats(_Section):
 
 
 @dataclass(frozen=True)
+class CameraTimeOffsetStats(_Section):
+    """A navigator's estimate of its scene-matching camera's time offset (the frames' stamp
+    minus their exposure) against the true one (run.json camera_time_offset_s of the camera in
+    camera_time_offset_estimated, 0 where its clock is right), in milliseconds: error_ms,
+    ErrorStats of |estimate - truth| over the GNSS-denied rows (all rows without any);
+    final_error_ms / final_sigma_ms at each vehicle's last row (the largest over vehicles)."""
+
+    error_ms: ErrorStats | None = None
+    final_error_ms: float | None = None
+    final_sigma_ms: float | None = None
+
+
+@dataclass(frozen=True)
 class NavSubset(_Section):
     """Navigation error over a subset of time (GNSS-denied, smooth, turning).
 
@@ -164,7 +177,8 @@ class NavMetrics(_Section):
     gnss_sky: the satellites the receivers saw (GnssSkyStats), None without a sky model;
     camera_boresight: the estimate of the scene-matching camera's boresight against its truth
     (CameraBoresightStats, with nees "camera_boresight", 3 dof), None where no navigator
-    estimates one.
+    estimates one; camera_time_offset: the same of the camera's time offset
+    (CameraTimeOffsetStats, nees "camera_time_offset", 1 dof).
     """
 
     position_error_m: ErrorStats | None = None
@@ -181,6 +195,7 @@ class NavMetrics(_Section):
     wind_error_mps: ErrorStats | None = None
     gnss_sky: GnssSkyStats | None = None
     camera_boresight: CameraBoresightStats | None = None
+    camera_time_offset: CameraTimeOffsetStats | None = None
 
 
 @dataclass(frozen=True)

@@ -54,6 +54,10 @@ TELEMETRY_BORESIGHT_COLUMNS = (
     "nav_sigma_boresight_x_rad", "nav_sigma_boresight_y_rad", "nav_sigma_boresight_z_rad",
 )
 
+# With Recorder(time_offset_columns=True): the navigator's estimate of its scene-matching
+# camera's time offset (stamp minus exposure, s) with its sigma (NaN where it estimates none).
+TELEMETRY_TIME_OFFSET_COLUMNS = ("nav_camera_time_offset_s", "nav_sigma_camera_time_offset_s")
+
 _NAN = float("nan")
 
 
@@ -61,13 +65,17 @@ class Recorder:
     """Accumulates telemetry rows and event rows for one run; wind_columns: add
     TELEMETRY_WIND_COLUMNS (a scenario with wind, or a navigator that estimates it);
     boresight_columns: add TELEMETRY_BORESIGHT_COLUMNS (a navigator that estimates its camera's
-    boresight)."""
+    boresight); time_offset_columns: add TELEMETRY_TIME_OFFSET_COLUMNS (a navigator that
+    estimates its camera's time offset)."""
 
-    def __init__(self, wind_columns: bool = False, boresight_columns: bool = False) -> None:
+    def __init__(self, wind_columns: bool = False, boresight_columns: bool = False,
+                 time_offset_columns: bool = False) -> None:
         self._wind_columns = bool(wind_columns)
         self._boresight_columns = bool(boresight_columns)
+        self._time_offset_columns = bool(time_offset_columns)
         self._float_columns = (TELEMETRY_FLOAT_COLUMNS + (TELEMETRY_WIND_COLUMNS if wind_columns else ())
-                               + (TELEMETRY_BORESIGHT_COLUMNS if boresight_columns else ()))
+                               + (TELEMETRY_BORESIGHT_COLUMNS if boresight_columns else ())
+                               + (TELEMETRY_TIME_OFFSET_COLUMNS if time_offset_columns else ()))
         self._tel: dict[str, list] = {c: [] for c in self._float_columns}
         self._vehicle: list[str] = []
         self._leg: list[int] = []
@@ -130,6 +138,10 @@ class Recorder:
             self._record_wind(truth, est)
         if self._boresight_columns:
             self._record_boresight(est)
+        if self._time_offset_columns:
+            td, var = est.camera_time_offset_s, est.var_camera_time_offset_s2
+            c["nav_camera_time_offset_s"].append(_NAN if td is None else float(td))
+            c["nav_sigma_camera_time_offset_s"].append(_NAN if var is None else math.sqrt(max(var, 0.0)))
         self._vehicle.append(vehicle_id)
         self._leg.append(int(s.leg_index))
         self._on_leg.append(bool(s.on_leg))

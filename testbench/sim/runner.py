@@ -79,7 +79,8 @@ def build_engine(
     # Wind columns where there is wind to score or an estimate of it (records of calm-air
     # runs whose navigators carry no wind keep their columns as before).
     recorder = Recorder(wind_columns=scn.world.wind is not None or any(rt.navigator.estimates_wind for rt in vehicles),
-                        boresight_columns=any(getattr(rt.navigator, "estimates_camera_boresight", False) for rt in vehicles))
+                        boresight_columns=any(getattr(rt.navigator, "estimates_camera_boresight", False) for rt in vehicles),
+                        time_offset_columns=any(getattr(rt.navigator, "time_offset_camera", None) for rt in vehicles))
     engine = Engine(
         vehicles, world, scn.physics_rate_hz, scn.duration_s, record_every, recorder,
         realtime=realtime, on_progress=on_progress, frame_sink=frame_sink, formation=scn.formation,
@@ -216,6 +217,9 @@ def _run_info(loaded: LoadedScenario, engine: Engine, world: RunWorld, result: E
         "gnss_spoofed_windows": {v.id: _gnss_denial_windows(v.spec, result.sim_time_s, "spoofing") for v in engine.vehicles},
         "aid_counters": _aid_counters(engine),
         "camera_boresight_error_deg": _camera_boresights(engine),
+        "camera_time_offset_s": _camera_time_offsets(engine),
+        "camera_time_offset_estimated": {v.id: v.navigator.time_offset_camera for v in engine.vehicles
+                                         if getattr(v.navigator, "time_offset_camera", None)},
         "camera_boresight_estimated": {v.id: v.navigator.boresight_camera for v in engine.vehicles
                                        if getattr(v.navigator, "boresight_camera", None)},
         # The code, library builds and CPU features the record's bits depend on (provenance).
@@ -233,6 +237,19 @@ def _camera_boresights(engine: Engine) -> dict[str, dict[str, list[float]]]:
             err = getattr(slot.sensor, "boresight_error_deg", None)
             if err is not None and np.any(err):
                 out.setdefault(v.id, {})[slot.name] = [float(x) for x in err]
+    return out
+
+
+def _camera_time_offsets(engine: Engine) -> dict[str, dict[str, float]]:
+    """vehicle id -> camera name -> its frames' stamp minus their true exposure time (s;
+    CameraSensor.time_offset_s), for the cameras whose clock is off: the truth an estimate of
+    the offset is scored against."""
+    out: dict[str, dict[str, float]] = {}
+    for v in engine.vehicles:
+        for slot in v.sensors:
+            offset = getattr(slot.sensor, "time_offset_s", 0.0)
+            if offset:
+                out.setdefault(v.id, {})[slot.name] = float(offset)
     return out
 
 

@@ -100,3 +100,18 @@ def test_check_refuses_replayed_late_fixes_beside_the_spoofing_monitor():
     assert "delayed_fixes" in proc.stderr and "'carry'" in proc.stderr and "Traceback" not in proc.stderr
     ok = _run(scenario, "--check", *both, "--set", "vehicles.uav0.navigation.params.delayed_fixes=carry")
     assert ok.returncode == 0, ok.stderr
+
+
+def test_check_refuses_a_time_offset_state_without_one_scene_matcher():
+    """The camera time offset state is learnt from one ismn aid's fixes: without a scene matcher,
+    or beside the boresight states, the check names the key; with the main job's one aid it builds."""
+    offset = "vehicles.uav0.navigation.params.camera_time_offset={sigma_s: 0.03}"
+    proc = _run(str(SCENARIOS / "ins_only_800m.yaml"), "--check", "--set", offset)
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert "camera_time_offset" in proc.stderr and "ismn" in proc.stderr and "Traceback" not in proc.stderr
+    scenario = str(SCENARIOS / "paper_ismn_800m.yaml")
+    both = _run(scenario, "--check", "--set", offset, "--set", "vehicles.uav0.navigation.params.camera_boresight={sigma_deg: 0.5}",
+                "--set", "vehicles.uav0.aids.ismn.pipeline.pose_from_image=true")
+    assert both.returncode == 2 and "camera_boresight" in both.stderr, both.stderr
+    ok = _run(scenario, "--check", "--set", offset)
+    assert ok.returncode == 0, ok.stderr

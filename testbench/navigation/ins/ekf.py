@@ -113,6 +113,12 @@ class ErrorStateEKF(Reacquisition):
     pose against the INS attitude (measurements.image_pose), then through the MAP fixes'
     attitude coupling (measurements.position_ned). A camera mount known to 0.1 deg
     moves the fixes of a camera 800 m up by 1.4 m, the same way for a whole leg.
+    camera_time_offset_sigma_s: 1-sigma of the scene-matching camera's time offset td (its
+    frames' stamp minus their true exposure, s; 0: no such state): one random constant after the
+    others (self.i_td), learnt from the position fixes (measurements.position_ned): a fix is of
+    the position td before its stamp, v td behind (at 25 m/s, 0.5 m per 20 ms), and seen through
+    the attitude the image had then. Straight legs flown both ways tell it from the fixes' shared
+    error, which does not turn with the track.
     gyro_scale_sigma, scale_corr_angle_rad: the gyros' scale-factor and cross-axis error (1 sigma,
     rad per rad turned) is a constant error in each rate the IMU reads, which the error state
     does not carry: it enters P as attitude noise per angle turned, s^2 Theta |dtheta| per axis,
@@ -137,7 +143,8 @@ class ErrorStateEKF(Reacquisition):
                  appearance_sigma_m: float | np.ndarray = 0.0, mag_bias_sigma_rad: float = 0.0,
                  mag_bias_correlation_m: float = math.inf, flow_bias_sigma_rps: float = 0.0,
                  flow_bias_tau_s: float = math.inf, flow_bias_correlation_rad: float = math.inf,
-                 camera_boresight_sigma_rad: float = 0.0, vehicle_id: str | None = None):
+                 camera_boresight_sigma_rad: float = 0.0, camera_time_offset_sigma_s: float = 0.0,
+                 vehicle_id: str | None = None):
         if bias_model not in ("random_walk", "gauss_markov"):
             raise ValueError(f"bias_model {bias_model!r}: expected 'random_walk' or 'gauss_markov'")
         self.noise = noise
@@ -161,7 +168,10 @@ class ErrorStateEKF(Reacquisition):
         n_flow = n_mag + (2 if self.i_flow is not None else 0)
         self.i_cam: slice | None = slice(n_flow, n_flow + 3) if camera_boresight_sigma_rad > 0.0 else None
         """The scene-matching camera's boresight error's three states (body axes, rad), or None."""
-        self.n = n_flow + (3 if self.i_cam is not None else 0)
+        n_cam = n_flow + (3 if self.i_cam is not None else 0)
+        self.i_td: int | None = n_cam if camera_time_offset_sigma_s > 0.0 else None
+        """The scene-matching camera's time offset's state (its frames' stamp minus their exposure, s), or None."""
+        self.n = n_cam + (1 if self.i_td is not None else 0)
         """Number of error states (the length of dx, the size of P)."""
         # Correlation times of the IMU bias ERRORS in F (inf: random walk) and of the nominal biases.
         gm = bias_model == "gauss_markov"
@@ -190,6 +200,8 @@ class ErrorStateEKF(Reacquisition):
             self._qc = np.concatenate([self._qc, [0.0, 0.0]])  # a Gauss-Markov step in flush()
         if self.i_cam is not None:
             self._qc = np.concatenate([self._qc, [0.0, 0.0, 0.0]])  # a constant: the mount does not move
+        if self.i_td is not None:
+            self._qc = np.concatenate([self._qc, [0.0]])  # a constant: the clocks' offset, not their drift
         self.ins: StrapdownINS | None = None
         self.b_g = np.zeros(3)
         self.b_a = np.zeros(3)
@@ -201,6 +213,7 @@ class ErrorStateEKF(Reacquisition):
         self.drag_scale = 0.0
         self.b_flow_rps = np.zeros(2)
         self.b_cam_rad = np.zeros(3)
+        self.td_s = 0.0
         self.flow_view_rate_rps = 0.0  # |translational flow| of the last flow sample (rad/s), held until the next
         self.wind_ne_mps = np.zeros(2)
         self.P = np.zeros((self.n, self.n))
@@ -225,6 +238,7 @@ class ErrorStateEKF(Reacquisition):
         self.drag_scale = 0.0
         self.b_flow_rps = np.zeros(2)
         self.b_cam_rad = np.zeros(3)
+        self.td_s = 0.0
         self.wind_ne_mps = np.zeros(2)
         self.P = np.array(P0, float)
         self._acc_T = 0.0
@@ -415,6 +429,8 @@ class ErrorStateEKF(Reacquisition):
             self.b_flow_rps = self.b_flow_rps + dx[self.i_flow]
         if self.i_cam is not None:
             self.b_cam_rad = self.b_cam_rad + dx[self.i_cam]
+        if self.i_td is not None:
+            self.td_s += float(dx[self.i_td])
 
     # ------------------------------------------------------------------ guard
     def _check(self, where: str) -> None:

@@ -7,6 +7,7 @@ Each function takes the filter (`ErrorStateEKF`) for its nominal state and retur
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
@@ -113,6 +114,54 @@ def position_ned(ekf, pos_ned_m, cov_ned_m2, origin: GeodeticOrigin, att_sensiti
         lag = np.asarray(vel_lag_s, float)
         H[:, IV] = -(lag @ H[:, IP] if lag.ndim == 2 else float(lag) * H[:, IP])
     return y, H, np.asarray(cov_ned_m2, float)
+
+
+@dataclass(frozen=True)
+class TimeOffsetTerms:
+    """What a position fix of a camera whose clock is off holds of its time offset td (the
+    frame's stamp minus its exposure; the filter's state ekf.i_td, estimate td_hat = ekf.td_s).
+
+    The image shows the vehicle at t - td: at p(t) - v td, and with the attitude
+    Exp(-omega_n td) C it had then (omega_n the body's rate in NED). The scene matcher solved it
+    with the prior of t - td_hat (IsmnAid), so the fix errs from p(t) - v td by -M psi, where psi,
+    the prior's attitude error against the image's, is phi - omega_n (td - td_hat). Hence
+    z = p(t) - v td_hat + ... with H_td = -R_on v + M omega_n (position_column), and the fix
+    carried to the stamp on the estimated velocity (carried: z + R_on v td_hat, the lag term
+    -td_hat R_on on the velocity error). The image heading is the one of t - td:
+    heading + psi_dot td_hat against the filter's, H_td = -psi_dot (heading_rate_rps).
+
+    v_on_mps (3,): the estimated velocity in origin NED; omega_n_rps (3,): the estimated body
+    rate relative to the Earth in NED; td_s: td_hat; heading_rate_rps: d heading / dt."""
+
+    v_on_mps: np.ndarray
+    omega_n_rps: np.ndarray
+    td_s: float
+    heading_rate_rps: float
+
+    @classmethod
+    def of(cls, ekf, origin: GeodeticOrigin) -> "TimeOffsetTerms":
+        ins = ekf.ins
+        C = ekf.C_nb
+        omega_n = C @ np.asarray(ekf.omega_ib_b_rps, float) - geodesy.earth_rate_ned_rps(ins.lat_rad)
+        v_on = origin_rotation(ins.lat_rad, ins.lon_rad, origin) @ np.asarray(ins.vel, float)
+        return cls(v_on, omega_n, float(ekf.td_s), float(heading_sensitivity(C) @ omega_n))
+
+    def carried(self, pos_ned_m, vel_lag_s):
+        """(the fix carried to its stamp (3,) origin NED m, its velocity lag: vel_lag_s + td_hat)."""
+        td = self.td_s
+        lag = td if vel_lag_s is None else (np.asarray(vel_lag_s, float) + td * (
+            np.eye(np.shape(vel_lag_s)[0]) if np.ndim(vel_lag_s) == 2 else 1.0))
+        return np.asarray(pos_ned_m, float) + self.v_on_mps * td, lag
+
+    def position_column(self, att_sensitivity_m_per_rad=None) -> np.ndarray:
+        """H_td (3,) of the carried fix: -R_on v, plus M omega_n with the attitude coupling M."""
+        col = -self.v_on_mps
+        if att_sensitivity_m_per_rad is not None:
+            col = col + np.asarray(att_sensitivity_m_per_rad, float) @ self.omega_n_rps
+        return col
+
+    def carried_heading(self, heading_rad: float) -> float:
+        return float(heading_rad) + self.heading_rate_rps * self.td_s
 
 
 def image_pose(ekf, pos_ned_m, R_nb_img, cov_pose, origin: GeodeticOrigin, appearance_gain: float = 0.0):

@@ -111,6 +111,7 @@ class InsEkfNavigator(Navigator):
                                        else params.optical_flow.bias_correlation_rad),
             camera_boresight_sigma_rad=(0.0 if params.camera_boresight is None
                                         else params.camera_boresight.sigma_deg * DEG_TO_RAD),
+            camera_time_offset_sigma_s=0.0 if params.camera_time_offset is None else params.camera_time_offset.sigma_s,
         )
         self._mag_model: OnboardMagneticModel | None = None
         self._airspeed: float | None = None
@@ -126,6 +127,8 @@ class InsEkfNavigator(Navigator):
         self.estimates_camera_boresight = self.ekf.i_cam is not None
         self.boresight_camera: str | None = None
         """The camera whose boresight the states are (check_aids: the ismn aid's), for scoring."""
+        self.time_offset_camera: str | None = None
+        """The camera whose time offset the state is (check_aids: the ismn aid's), for scoring."""
         self.air = AirRelativeAiding(params, aircraft, ctx.vehicle_id)
         """Rotor-drag and airspeed aiding (air_aiding.py)."""
         self.flow = None if params.optical_flow is None else FlowVelocityAiding(params.optical_flow)
@@ -170,7 +173,8 @@ class InsEkfNavigator(Navigator):
     def initial_covariance(self) -> np.ndarray:
         """P0 (ekf.n, ekf.n) from Params.initial_sigma (GNSS and fix error states, the drag scale,
         the magnetic bias and the flow's slow error: their steady state; the wind, with wind
-        states: their aiding's wind_sigma_mps; the camera's boresight: its sigma_deg)."""
+        states: their aiding's wind_sigma_mps; the camera's boresight: its sigma_deg; its time
+        offset: its sigma_s)."""
         s = self.params.initial_sigma
         d = np.empty(self.ekf.n)
         d[IP] = s.pos_m
@@ -196,6 +200,8 @@ class InsEkfNavigator(Navigator):
             d[self.ekf.i_flow] = self.params.optical_flow.bias_sigma_rps
         if self.ekf.i_cam is not None:
             d[self.ekf.i_cam] = self.params.camera_boresight.sigma_deg * DEG_TO_RAD
+        if self.ekf.i_td is not None:
+            d[self.ekf.i_td] = self.params.camera_time_offset.sigma_s
         return np.diag(d**2)
 
     def appearance_gain(self, quality: float) -> float:
@@ -274,17 +280,25 @@ class InsEkfNavigator(Navigator):
         M = measurement.att_sensitivity_m_per_rad if p.fix_attitude_coupling else None
         base = measurement.cov_ned_m2 if M is None else measurement.cov_given_att_ned_m2
         white = self._white_fix_cov(base)
-        y, H, R = meas.position_ned(ekf, measurement.pos_ned_m, white, self.ctx.origin, M,
-                                    appearance_gain=self.appearance_gain(measurement.quality),
-                                    vel_lag_s=measurement.vel_lag_s)
+        offset = None if ekf.i_td is None or measurement.source != "ismn" else meas.TimeOffsetTerms.of(ekf, self.ctx.origin)
+        pos, lag = measurement.pos_ned_m, measurement.vel_lag_s
+        if offset is not None:
+            pos, lag = offset.carried(pos, lag)
+        y, H, R = meas.position_ned(ekf, pos, white, self.ctx.origin, M,
+                                    appearance_gain=self.appearance_gain(measurement.quality), vel_lag_s=lag)
+        if offset is not None:
+            H[:, ekf.i_td] = offset.position_column(M)
         info = self._fuse_fix(f"position_fix:{measurement.source}", t, y, H, R)
         if p.use_fix_heading and measurement.heading_rad is not None and info is not None and info.accepted:
             # The image-only heading of the same solve: nearly uncorrelated with its centre in
             # a nadir view (a rotation about the vertical through the centre moves no point
             # near it), so fused as a measurement of its own after the position; only from a
             # fix the gate let through (a false match's heading is as false as its position).
-            heading = ekf.update(f"heading_fix:{measurement.source}", t,
-                                 *meas.fix_heading(ekf, measurement.heading_rad, measurement.heading_sigma_rad))
+            heading_rad = measurement.heading_rad if offset is None else offset.carried_heading(measurement.heading_rad)
+            yh, Hh, Rh = meas.fix_heading(ekf, heading_rad, measurement.heading_sigma_rad)
+            if offset is not None:
+                Hh[0, ekf.i_td] = -offset.heading_rate_rps
+            heading = ekf.update(f"heading_fix:{measurement.source}", t, yh, Hh, Rh)
             return info, heading
         return info
 
@@ -322,6 +336,8 @@ class InsEkfNavigator(Navigator):
             cov_wind_ne_m2s2=P[IW, IW].copy() if ekf.wind_states else None,
             camera_boresight_b_rad=None if ekf.i_cam is None else ekf.b_cam_rad.copy(),
             cov_camera_boresight_rad2=None if ekf.i_cam is None else P[ekf.i_cam, ekf.i_cam].copy(),
+            camera_time_offset_s=None if ekf.i_td is None else float(ekf.td_s),
+            var_camera_time_offset_s2=None if ekf.i_td is None else float(P[ekf.i_td, ekf.i_td]),
         )
         for a in (est.pos_ned_m, est.vel_ned_mps, est.q_nb_wxyz, est.rpy_rad, est.omega_b_rps,
                   est.cov_pos_ned_m2, est.cov_vel_ned_m2s2, est.cov_att_rad2, est.wind_ne_mps, est.cov_wind_ne_m2s2,
@@ -352,6 +368,16 @@ class InsEkfNavigator(Navigator):
         """Raise InputError when the boresight states (Params.camera_boresight) have no scene
         matcher to learn them from (exactly one aid whose fixes carry the image-only pose), or
         when fixes that come late would be replayed over the spoofing monitor's own rewinds."""
+        if self.ekf.i_td is not None:
+            from testbench.navigation.ismn_aid import IsmnAid
+
+            matchers = [a for a in aids if isinstance(a, IsmnAid)]
+            if len(matchers) != 1 or self.ekf.i_cam is not None:
+                raise InputError(
+                    f"{where}.params.camera_time_offset: the time offset is one scene-matching camera's, learnt from its "
+                    f"fixes: the vehicle needs exactly one ismn aid (has {len(matchers)}), and no camera_boresight "
+                    "states beside it (the image pose's attitude rows do not model the offset)")
+            self.time_offset_camera = matchers[0].params.camera
         late = [a for a in aids if getattr(getattr(a, "params", None), "latency_s", 0.0) > 0.0]
         if late and self._gnss_guard is not None and self.params.delayed_fixes == "replay":
             raise InputError(

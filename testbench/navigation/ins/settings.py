@@ -230,6 +230,16 @@ class MeasurementSigmas(ParamsModel):
     position_fix_scale: float = pydantic.Field(1.0, gt=0)
 
 
+class CameraTimeOffsetParams(ParamsModel):
+    """`navigation.params.camera_time_offset`: the scene-matching camera's time offset (its
+    frames' stamp minus their true exposure: a camera clock not synchronised with the IMU's) as
+    one filter state, a random constant (ErrorStateEKF camera_time_offset_sigma_s)."""
+
+    sigma_s: float = pydantic.Field(0.03, gt=0.0, le=0.25)
+    """Its prior 1-sigma (s): what the camera's and the IMU's clocks may differ by before a
+    calibration (an unsynchronised USB or network camera: tens of milliseconds)."""
+
+
 class InsEkfParams(ParamsModel):
     """`navigation.params` of an ins_ekf vehicle (InsEkfNavigator.Params)."""
 
@@ -363,6 +373,11 @@ class InsEkfParams(ParamsModel):
     use_mag: bool = True
     mag_mode: Literal["heading", "vector"] = "heading"
     use_position_fix: bool = True
+    camera_time_offset: CameraTimeOffsetParams | None = None
+    """The scene-matching camera's time offset as a filter state (None: the frames' stamps are
+    taken as their exposure times). The ismn aid then asks the pipeline for the fix of the pose
+    at stamp - offset (its estimate), and the navigator fuses the fix as a position of that time.
+    Needs exactly one ismn aid and no camera_boresight states."""
     delayed_fixes: Literal["replay", "carry", "as_current"] = "replay"
     """How a position fix that reaches the filter after its time is fused (an aid's onboard
     processing time, IsmnAid latency_s; delayed.py): replay (exact: back to the state at the

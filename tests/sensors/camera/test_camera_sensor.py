@@ -140,3 +140,57 @@ def test_random_boresight_error_is_drawn_once_from_the_seed():
     none, rng = drawn(1, sigma=0.0)
     assert np.array_equal(none.true_mount.R_bc, none.mount.R_bc)
     assert rng.standard_normal() == np.random.default_rng(1).standard_normal()  # the stream untouched
+
+
+def test_a_frame_stamped_late_shows_the_pose_of_its_exposure():
+    """time_offset_s (stamp minus exposure): flying north at 25 m/s, a frame stamped 0.2 s after
+    its exposure looks down from 5 m further south; its stamp stays the tick's."""
+    world = TinyWorld()
+    cam = _sensor(noise_std=0.0, time_offset_s=0.2)
+    truth = make_truth(1.0, pos_ned_m=(20.0, -10.0, -100.0), vel_ned_mps=(25.0, 0.0, 0.0))
+    frame = cam.measure(truth, world, np.random.default_rng(0))
+    assert frame.t_s == 1.0
+    ((n0, n1, e0, e1), _), = world.asked
+    assert (n0 + n1) / 2 == pytest.approx(15.0, abs=1e-6) and (e0 + e1) / 2 == pytest.approx(-10.0, abs=1e-6)
+
+
+def test_the_exposure_pose_follows_a_turn_to_second_order():
+    """A level turn of radius 110 m at 25 m/s (a 30 deg bank's): the pose 0.1 s before the tick,
+    extrapolated from the tick's velocity, acceleration and body rate, within a millimetre and a
+    microradian of the circle's."""
+    import dataclasses
+
+    from testbench.core.rotations import euler_to_dcm, quat_to_dcm
+    from testbench.sensors.camera.sensor import exposure_pose
+
+    speed, radius, dt = 25.0, 110.0, 0.1
+    rate = speed / radius
+
+    def on_circle(t):
+        a = rate * t  # heading; the centre east of the start
+        pos = np.array([radius * np.sin(a), radius * (1 - np.cos(a)), -100.0])
+        return pos, np.array([speed * np.cos(a), speed * np.sin(a), 0.0]), a
+
+    pos, vel, heading = on_circle(2.0)
+    truth = make_truth(2.0, pos_ned_m=pos, vel_ned_mps=vel, rpy_rad=(0.0, 0.0, heading), omega_eb_b_rps=(0.0, 0.0, rate))
+    R_bn = quat_to_dcm(truth.q_nb_wxyz).T
+    acc_n = np.array([-np.sin(heading), np.cos(heading), 0.0]) * speed * rate  # towards the centre
+    from testbench.core.units import STANDARD_GRAVITY_MPS2
+
+    truth = dataclasses.replace(truth, f_b_mps2=R_bn @ (acc_n - np.array([0.0, 0.0, STANDARD_GRAVITY_MPS2])))
+    p_exp, R_exp = exposure_pose(truth, dt)
+    p_true, _, h_true = on_circle(2.0 - dt)
+    assert np.linalg.norm(p_exp - p_true) < 1e-3
+    np.testing.assert_allclose(R_exp, euler_to_dcm((0.0, 0.0, h_true)), atol=1e-6)
+
+
+def test_the_time_offset_is_drawn_once_per_run_from_its_stream():
+    cam = _sensor(time_offset_s=0.01, time_offset_sigma_s=0.02)
+    assert cam.time_offset_s == 0.01
+    cam.draw_constant_errors(np.random.default_rng(3))
+    again = _sensor(time_offset_s=0.01, time_offset_sigma_s=0.02)
+    again.draw_constant_errors(np.random.default_rng(3))
+    assert cam.time_offset_s == again.time_offset_s != 0.01
+    still = _sensor(time_offset_s=0.01)
+    still.draw_constant_errors(np.random.default_rng(3))
+    assert still.time_offset_s == 0.01
