@@ -260,8 +260,7 @@ class Engine:
             infos = self._correct_all(v, produced) if due_s <= t_s + 1e-9 else None
             verdicts = None if infos is None else [infos[id(p)].accepted for p in produced if id(p) in infos]
             for table, row in rows:
-                if "accepted" in row and row["accepted"] is None:
-                    row["accepted"] = bool(verdicts) and all(verdicts)
+                _set_verdict(row, verdicts)
                 if infos is None and row.get("fix"):
                     row["reason"] = "in flight at the end of the run"
                     if "delivered_t_s" in row:
@@ -276,8 +275,7 @@ class Engine:
                 continue
             verdicts = [infos[id(p)].accepted for p in produced if id(p) in infos]
             for table, row in diag.event_rows(v.id):
-                if "accepted" in row and row["accepted"] is None:
-                    row["accepted"] = bool(verdicts) and all(verdicts)
+                _set_verdict(row, verdicts)
                 self._fill_truth(row, v)
                 self.recorder.event(table, **row)
             for name, arrays in getattr(diag, "artifacts", lambda: [])():
@@ -375,3 +373,10 @@ class Engine:
                 "formation", t_s=t_s, vehicle_id=vid,
                 slot_error_north_m=float(err[0]), slot_error_east_m=float(err[1]), slot_error_down_m=float(err[2]),
             )
+
+
+def _set_verdict(row: dict[str, Any], verdicts: list[bool] | None) -> None:
+    """An aid's event row left for the navigator's verdict (accepted None) gets it: accepted
+    when every output of the attempt was (no outputs, or none fused: False)."""
+    if "accepted" in row and row["accepted"] is None:
+        row["accepted"] = bool(verdicts) and all(verdicts)
