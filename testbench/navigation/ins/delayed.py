@@ -33,6 +33,7 @@ from typing import Any, Literal
 import numpy as np
 
 from testbench.core.messages import PositionFix
+from testbench.navigation.ins.measurements import add_lag
 from testbench.navigation.ins.rollback import replay, restore
 
 log = logging.getLogger(__name__)
@@ -96,10 +97,8 @@ class DelayedFixes:
         if self.mode == "carry":
             tau = nav.ekf.t_s - float(fix.t_s)
             moved = np.asarray(nav.estimate().pos_ned_m, float) - held
-            own = None if fix.vel_lag_s is None else np.asarray(fix.vel_lag_s, float)
-            lag = tau if own is None else own + tau * (np.eye(own.shape[0]) if own.ndim == 2 else 1.0)
             return nav.fuse_fix_now(dataclasses.replace(fix, pos_ned_m=np.asarray(fix.pos_ned_m, float) + moved,
-                                                       vel_lag_s=lag))
+                                                       vel_lag_s=add_lag(fix.vel_lag_s, tau)))
         return self._replay(nav, fix, i, held)
 
     # ------------------------------------------------------------------ replay

@@ -116,6 +116,15 @@ def position_ned(ekf, pos_ned_m, cov_ned_m2, origin: GeodeticOrigin, att_sensiti
     return y, H, np.asarray(cov_ned_m2, float)
 
 
+def add_lag(vel_lag_s, tau_s: float):
+    """A fix's velocity lag (PositionFix.vel_lag_s: None, tau (s) or a lag matrix L (s)) after
+    it is carried tau_s further on the estimated velocity: tau_s, tau + tau_s, or L + tau_s I."""
+    if vel_lag_s is None:
+        return tau_s
+    lag = np.asarray(vel_lag_s, float)
+    return lag + tau_s * (np.eye(lag.shape[0]) if lag.ndim == 2 else 1.0)
+
+
 @dataclass(frozen=True)
 class TimeOffsetTerms:
     """What a position fix of a camera whose clock is off holds of its time offset td (the
@@ -148,10 +157,7 @@ class TimeOffsetTerms:
 
     def carried(self, pos_ned_m, vel_lag_s):
         """(the fix carried to its stamp (3,) origin NED m, its velocity lag: vel_lag_s + td_hat)."""
-        td = self.td_s
-        lag = td if vel_lag_s is None else (np.asarray(vel_lag_s, float) + td * (
-            np.eye(np.shape(vel_lag_s)[0]) if np.ndim(vel_lag_s) == 2 else 1.0))
-        return np.asarray(pos_ned_m, float) + self.v_on_mps * td, lag
+        return np.asarray(pos_ned_m, float) + self.v_on_mps * self.td_s, add_lag(vel_lag_s, self.td_s)
 
     def position_column(self, att_sensitivity_m_per_rad=None) -> np.ndarray:
         """H_td (3,) of the carried fix: -R_on v, plus M omega_n with the attitude coupling M."""
