@@ -84,3 +84,11 @@ def camera_pose_ned(pos_ned_m, R_nb, mount: CameraMount) -> tuple[np.ndarray, np
     R_nc = np.asarray(R_nb) @ mount.R_bc
     centre = np.asarray(pos_ned_m, float) + np.asarray(R_nb) @ mount.lever_arm_b_m
     return centre, R_nc
+
+
+def row_delay_s(v_px, height_px: int, readout_s: float):
+    """Exposure time of image row(s) v_px (pixel rows, the first row 0; fractional rows allowed)
+    after the frame's middle row (s), for a rolling shutter reading the rows out over readout_s
+    (the first row first; the frame's time and stamp are its middle row's):
+    readout_s * ((v + 0.5) / height_px - 0.5), negative for the rows above the middle."""
+    return readout_s * ((np.asarray(v_px, float) + 0.5) / float(height_px) - 0.5)

@@ -4,7 +4,10 @@
 table 1 (size, intrinsics or field of view, lens distortion, noise, clipping, mounting angles
 and lever arm, frame rate, exposure/gain, vignetting, motion blur). Its mounting as calibrated
 (`.mount`, what navigation is given) can differ from the mounting that renders
-(`.true_mount`) by a boresight error (`mount_error_deg`, `mount_error_sigma_deg`). At each frame it asks the
+(`.true_mount`) by a boresight error (`mount_error_deg`, `mount_error_sigma_deg`); its clock can
+be off the IMU's (`time_offset_s`: the frame seen from the pose of its exposure), and a rolling
+shutter (`readout_s`) exposes its rows one after another, each band of rows rendered from the pose
+of its own time (rolling_shutter.py). At each frame it asks the
 world for the imagery (and elevation) under its footprint at a suitable ground sample, the
 other vehicles in view with their LED states, and which regions to render (a relative-
 navigation aid may ask for regions around its tracks only); then it calls the pure renderer.
@@ -30,6 +33,7 @@ from testbench.core.registry import ParamsModel, register
 from testbench.core.rotations import euler_to_dcm, quat_to_dcm, rotvec_to_quat
 from testbench.core.units import STANDARD_GRAVITY_MPS2
 from testbench.sensors.camera.render import render
+from testbench.sensors.camera.rolling_shutter import render_rolling
 from testbench.sensors.camera.types import RenderedFrame, RenderOptions, VehicleAppearance, VehicleTruth
 from testbench.sensors.camera.vehicles import draw_vehicles
 from testbench.world.raster import LocalRaster
@@ -127,6 +131,13 @@ class CameraParams(ParamsModel):
     time_offset_sigma_s: float = pydantic.Field(
         0.0, ge=0, le=0.1, description="a random time offset on top of time_offset_s, drawn once per run (s, 1 sigma) "
         "from the run's seeded streams when the vehicle is built")
+    readout_s: float = pydantic.Field(
+        0.0, ge=0, le=0.1, description="rolling shutter: the time from the first row's exposure to the last's (s; 0: a "
+        "global shutter). The stamp and time_offset_s refer to the middle row; row v is exposed readout_s * "
+        "((v + 0.5) / height_px - 0.5) after it. Less than the frame interval")
+    readout_bands: int = pydantic.Field(
+        24, ge=2, le=1080, description="a rolling-shutter frame is rendered in this many bands of rows, each at the true "
+        "pose of its middle row (the seams are the pose's change over readout_s / readout_bands)")
     gain: float = pydantic.Field(1.0, gt=0)
     vignetting: float = pydantic.Field(0.0, ge=0, le=1)
     exposure_s: float = pydantic.Field(0.0, ge=0, description="motion blur from body rates over the exposure")
@@ -139,6 +150,9 @@ class CameraParams(ParamsModel):
     def _intrinsics(self) -> "CameraParams":
         if self.fx is None and self.hfov_deg is None:
             raise ValueError("give hfov_deg or fx (and fy, cx, cy)")
+        if self.readout_s * self.rate_hz >= 1.0:
+            raise ValueError(f"readout_s {self.readout_s:g} s must be shorter than the frame interval 1 / rate_hz = "
+                             f"{1.0 / self.rate_hz:g} s (a sensor reads one frame out before it starts the next)")
         return self
 
 
@@ -219,6 +233,8 @@ class CameraSensor(Sensor):
         imagery = None
         elevation = None
         bounds_gsd = self._footprint(centre, R_nc, world)
+        if bounds_gsd is not None and self.params.readout_s > 0.0:
+            bounds_gsd = self._with_readout_footprints(bounds_gsd, truth, world)
         if bounds_gsd is not None:
             bounds, gsd = bounds_gsd
             imagery = world.imagery_for(bounds, gsd)
@@ -232,11 +248,28 @@ class CameraSensor(Sensor):
         obstacles = tuple(getattr(world, "obstacles", ()) or ())
         clouds = world.clouds() if hasattr(world, "clouds") else None
         rois = [None] if requests is None else list(requests)
+        cam = self.camera
+        readout = self.params.readout_s
+
+        def render_box(box, pos_ned_m, R_nb_):
+            """The region box (u0, v0, u1, v1; None: the whole frame) seen from the true pose."""
+            return render(cam, self.true_mount, pos_ned_m, R_nb_, imagery, elevation, vehicles=vehicles, rng=rng,
+                          roi=box, options=opts, obstacles=obstacles, clouds=clouds)
+
+        def render_band(box, delay_s):
+            """A band of rows exposed delay_s after the middle row (rolling shutter)."""
+            whole_band = box == (0, 0, cam.width_px, cam.height_px)
+            return render_box(None if whole_band else box, *exposure_pose(truth, self.time_offset_s - delay_s))
+
         parts = []
         for roi in rois:
-            full = roi is not None and tuple(roi) == (0, 0, self.camera.width_px, self.camera.height_px)
-            parts.append(render(self.camera, self.true_mount, pos, R_nb, imagery, elevation, vehicles=vehicles, rng=rng,
-                                roi=None if full else roi, options=opts, obstacles=obstacles, clouds=clouds))
+            full = roi is None or tuple(roi) == (0, 0, cam.width_px, cam.height_px)
+            box = (0, 0, cam.width_px, cam.height_px) if full else _clip_roi(cam, roi)
+            if readout > 0.0 and box[2] > box[0] and box[3] > box[1]:  # (an empty box: the renderer's error)
+                parts.append(render_rolling(box, cam.height_px, readout, self.params.readout_bands, render_band,
+                                            _merge_truths, full))
+            else:
+                parts.append(render_box(None if full else roi, pos, R_nb))
         whole = next((p for p in parts if p.roi is None), None)
         truths = _merge_truths(parts)
         n_px = sum(p.valid.size for p in parts)
@@ -277,6 +310,19 @@ class CameraSensor(Sensor):
         whole = next((p for p in parts if p.roi is None), None)
         return CameraFrame(truth.t_s, self.name, None if whole is None else whole.image, tuple(parts), truths, 0.0,
                            self.camera, self.mount)
+
+    def _with_readout_footprints(self, bounds_gsd, truth: TruthState, world: Any):
+        """(bounds, gsd) of the middle row's footprint grown to hold the footprints seen from the
+        poses of the first and the last rows (a rolling shutter), so that the map read holds
+        every band's ground."""
+        (n0, n1, e0, e1), gsd = bounds_gsd
+        for delay_s in (-0.5 * self.params.readout_s, 0.5 * self.params.readout_s):
+            pose = exposure_pose(truth, self.time_offset_s - delay_s)
+            other = self._footprint(*camera_pose_ned(*pose, self.true_mount), world)
+            if other is not None:
+                (a0, a1, b0, b1), _ = other
+                n0, n1, e0, e1 = min(n0, a0), max(n1, a1), min(e0, b0), max(e1, b1)
+        return (n0, n1, e0, e1), gsd
 
     def _footprint(self, centre: np.ndarray, R_nc: np.ndarray, world: Any):
         """NE bounds of the ground the frame can see and the window's ground sample (m/px),
@@ -360,6 +406,13 @@ def _with_motion_blur(opts: RenderOptions, cam: PinholeCamera, R_nc, truth: Trut
     du = cam.fx * w[1] * exposure_s
     dv = -cam.fy * w[0] * exposure_s
     return replace(opts, motion_blur_px=(float(du), float(dv)))
+
+
+def _clip_roi(cam: PinholeCamera, roi) -> tuple[int, int, int, int]:
+    """A requested region (u0, v0, u1, v1) rounded to whole pixels and clipped to the frame (as
+    the renderer clips it), so that its bands cover what a single render would."""
+    u0, v0, u1, v1 = (int(round(x)) for x in roi)
+    return (max(u0, 0), max(v0, 0), min(u1, cam.width_px), min(v1, cam.height_px))
 
 
 def _merge_truths(parts: Sequence[RenderedFrame]) -> tuple[VehicleTruth, ...]:
