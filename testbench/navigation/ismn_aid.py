@@ -34,6 +34,7 @@ from testbench.core.registry import ParamsModel, build, register
 from testbench.core.rotations import quat_multiply, quat_to_euler, rotvec_to_quat
 from testbench.navigation.fix_columns import position_fix_columns
 from testbench.navigation.ismn import IsmnDiagnostics, IsmnParams, IsmnPipeline
+from testbench.navigation.ismn.pipeline import with_camera_readout
 
 _NAN = float("nan")
 
@@ -125,6 +126,7 @@ class IsmnAid(NavigationAid):
             from testbench.core.registry import format_validation_error
 
             raise InputError(format_validation_error(exc, f"{where}.params.pipeline")) from None
+        pipe_params = with_camera_readout(pipe_params, sensor)  # the rolling shutter, as its datasheet gives it
         matcher = build("matcher", params.matcher.type, params.matcher.params, f"{where}.params.matcher", ctx=ctx)
         self.pipeline = IsmnPipeline(cam, mount, reference, onboard["reference_elevation"](), matcher, pipe_params)
         self.same_raster = bool(onboard.get("same_raster", False))

@@ -62,6 +62,7 @@ def build(scenario_path: str, overrides=(), pipeline_over: dict | None = None, m
     from testbench.core.registry import build as build_component
     from testbench.core.rng import RngStreams
     from testbench.navigation.ismn import IsmnParams, IsmnPipeline
+    from testbench.navigation.ismn.pipeline import with_camera_readout
     from testbench.sensors.camera.sensor import CameraSensor
     from testbench.sim.runner import origin_of
     from testbench.sim.world_runtime import RunWorld
@@ -80,7 +81,7 @@ def build(scenario_path: str, overrides=(), pipeline_over: dict | None = None, m
     m = dict(ap.get("matcher", {}) or {})
     mparams = {**m.get("params", {}), **(matcher_over or {})}
     matcher = build_component("matcher", matcher_type or m.get("type", "ncc"), mparams, "matcher", ctx=ctx)
-    pp = IsmnParams.model_validate({**ap.get("pipeline", {}), **(pipeline_over or {})})
+    pp = with_camera_readout(IsmnParams.model_validate({**ap.get("pipeline", {}), **(pipeline_over or {})}), sensor)
     pipe = IsmnPipeline(sensor.camera, sensor.mount, world.reference_map(), world.reference_elevation(), matcher, pp)
     return sensor, pipe, world
 

@@ -21,6 +21,7 @@ import cv2
 import numpy as np
 
 from testbench.core.camera_geometry import PinholeCamera
+from testbench.navigation.ismn.rolling import RowMotion
 from testbench.navigation.ismn.types import OrthoFrame
 
 #: The coarse level is warped this many levels finer and reduced (OrthoFrame.coarse).
@@ -108,11 +109,15 @@ class Orthorectifier:
         origin_px: tuple[int, int],
         ground_down_m: float,
         height_fn: HeightFn | None = None,
+        motion: RowMotion | None = None,
     ) -> OrthoFrame:
         """The ortho view of a prepared frame on the grid (north0_m, east0_m, gsd_m, shape (H, W)).
 
-        centre_ned_m, R_nc: ESTIMATED camera centre and camera->NED rotation. With height_fn
-        (relief) each pixel uses its own ground height, else the plane down = ground_down_m.
+        centre_ned_m, R_nc: ESTIMATED camera centre and camera->NED rotation (with a rolling
+        shutter, the middle row's). With height_fn (relief) each pixel uses its own ground
+        height, else the plane down = ground_down_m. motion: a rolling shutter's row motion
+        (ismn.rolling; None: a global shutter): each ground point is then taken from the row
+        that saw it, and the warp is a remap as over relief.
         Nothing is warped here: the OrthoFrame warps the regions and levels a matcher asks for.
         """
         H_o, W_o = shape
@@ -123,7 +128,10 @@ class Orthorectifier:
                       [0.0, 0.0, ground_down_m - c[2]]])
         H_small = K_s @ R_cn @ M  # ortho px -> small undistorted camera px (plane)
         geometry = self._geometry_grid(c, R_cn, north0_m, east0_m, g, shape, ground_down_m)
-        relief = None if height_fn is None else self._relief_grid(K_s, c, R_cn, north0_m, east0_m, g, shape, height_fn)
+        if motion is not None:
+            relief = self._rolling_grid(K_s, motion, c, R_nc, north0_m, east0_m, g, shape, ground_down_m, height_fn)
+        else:
+            relief = None if height_fn is None else self._relief_grid(K_s, c, R_cn, north0_m, east0_m, g, shape, height_fn)
         warp = _FrameWarp(small, H_small, shape, geometry, relief)
         K_full = self.camera.K
 
@@ -132,6 +140,8 @@ class Orthorectifier:
             north = north0_m - (np.asarray(rows, float) + 0.5) * g
             east = east0_m + (np.asarray(cols, float) + 0.5) * g
             down = np.full_like(north, ground_down_m) if _h is None else _h(north, east)
+            if motion is not None:
+                return motion.project(c, R_nc, np.c_[north, east, down])
             xc = R_cn @ (np.vstack([north, east, down]) - c[:, None])
             uv = (K_full @ xc)[:2] / xc[2]
             return uv.T
@@ -160,6 +170,22 @@ class Orthorectifier:
         z = np.where(front, xc[2], 1.0)
         u = np.where(front, K_s[0, 0] * xc[0] / z + K_s[0, 2], -1e5).reshape(nr, nc).astype(np.float32)
         v = np.where(front, K_s[1, 1] * xc[1] / z + K_s[1, 2], -1e5).reshape(nr, nc).astype(np.float32)
+        return u, v, step
+
+    def _rolling_grid(self, K_s, motion: RowMotion, c, R_nc, north0, east0, g, shape, ground_down_m, height_fn, step=8):
+        """(u, v, step) as _relief_grid, the ground (the plane ground_down_m, or height_fn's)
+        projected through the rolling shutter's rows (RowMotion.project)."""
+        H_o, W_o = shape
+        nr, nc = -(-H_o // step), -(-W_o // step)
+        cc, rr = np.meshgrid((np.arange(nc) + 0.5) * step - 0.5, (np.arange(nr) + 0.5) * step - 0.5)
+        north = north0 - (rr.ravel() + 0.5) * g
+        east = east0 + (cc.ravel() + 0.5) * g
+        down = np.full_like(north, ground_down_m) if height_fn is None else height_fn(north, east)
+        uv = motion.project(c, R_nc, np.c_[north, east, down])
+        sx, sy = K_s[0, 0] / self.camera.fx, K_s[1, 1] / self.camera.fy
+        behind = ~np.isfinite(uv[:, 0])
+        u = np.where(behind, -1e5, sx * (np.nan_to_num(uv[:, 0]) + 0.5) - 0.5).reshape(nr, nc).astype(np.float32)
+        v = np.where(behind, -1e5, sy * (np.nan_to_num(uv[:, 1]) + 0.5) - 0.5).reshape(nr, nc).astype(np.float32)
         return u, v, step
 
     def _geometry_grid(self, c, R_cn, north0, east0, g, shape, ground_down_m, step=16):

@@ -85,16 +85,35 @@ def _prior_jacobian(R_nc):
     return Jpsi
 
 
-def _project(K, R_nc, c, X):
-    """(uv (N, 2), x_c (N, 3)) of NED points X (N, 3)."""
-    xc = (X - c) @ R_nc  # rows: R_cn (X - c)
+@dataclass(frozen=True)
+class PointPoses:
+    """Where each point's own camera pose lies from the solve's (a rolling shutter: each image row
+    exposed at its own time): point i is seen from the centre c + dc_ned_m[i] with the attitude
+    dR_ned[i] @ R_nc, (c, R_nc) the pose solved for. dc_ned_m (N, 3) NED m; dR_ned (N, 3, 3)
+    small NED rotations."""
+
+    dc_ned_m: np.ndarray
+    dR_ned: np.ndarray
+
+    def take(self, sel) -> "PointPoses":
+        return PointPoses(self.dc_ned_m[sel], self.dR_ned[sel])
+
+
+def _project(K, R_nc, c, X, poses: PointPoses | None = None):
+    """(uv (N, 2), x_c (N, 3), R_cn per point (N, 3, 3) or (3, 3)) of NED points X (N, 3)."""
+    if poses is None:
+        xc = (X - c) @ R_nc  # rows: R_cn (X - c)
+        R_cn = R_nc.T
+    else:  # x_c = (dR R_nc)^T (X - c - dc)
+        R_cn = np.swapaxes(poses.dR_ned @ R_nc, 1, 2)
+        xc = np.einsum("nij,nj->ni", R_cn, X - c - poses.dc_ned_m)
     uv = np.c_[K[0, 0] * xc[:, 0] / xc[:, 2] + K[0, 2], K[1, 1] * xc[:, 1] / xc[:, 2] + K[1, 2]]
-    return uv, xc
+    return uv, xc, R_cn
 
 
-def _linearise(K, R_nc, c, X, uv_obs, sigma_ground_m, sigma_img_px):
+def _linearise(K, R_nc, c, X, uv_obs, sigma_ground_m, sigma_img_px, poses: PointPoses | None = None):
     """Residuals, Jacobians (N, 2, 6) for [dc_n, delta_c], per-point information (N, 2, 2)."""
-    uv, xc = _project(K, R_nc, c, X)
+    uv, xc, R_cn = _project(K, R_nc, c, X, poses)
     r = uv_obs - uv
     z = xc[:, 2]
     Jp = np.zeros((len(X), 2, 3))
@@ -102,13 +121,17 @@ def _linearise(K, R_nc, c, X, uv_obs, sigma_ground_m, sigma_img_px):
     Jp[:, 0, 2] = -K[0, 0] * xc[:, 0] / z**2
     Jp[:, 1, 1] = K[1, 1] / z
     Jp[:, 1, 2] = -K[1, 1] * xc[:, 1] / z**2
-    R_cn = R_nc.T
     J = np.empty((len(X), 2, 6))
-    J[:, :, :3] = -Jp @ R_cn  # d x_c / d c_n = -R_cn
-    J[:, :, 3:] = Jp @ skew(xc)  # R_nc Exp(delta): x_c -> x_c - delta x x_c = x_c + [x_c]x delta
-    Jg = Jp @ R_cn[:, :2]  # d uv / d (north, east) of the map point
+    J[:, :, :3] = -Jp @ R_cn  # d x_c / d c_n = -R_cn (each point's own, with a rolling shutter)
+    # (dR) R_nc Exp(delta): x_c -> x_c - delta x x_c = x_c + [x_c]x delta
+    J[:, :, 3:] = Jp @ skew(xc)
+    Jg = Jp @ R_cn[..., :2]  # d uv / d (north, east) of the map point
     S = sigma_ground_m**2 * (Jg @ Jg.transpose(0, 2, 1)) + sigma_img_px**2 * np.eye(2)
     return r, J, _inv_sym2(S)
+
+
+def _take(poses: PointPoses | None, sel) -> PointPoses | None:
+    return None if poses is None else poses.take(sel)
 
 
 def _inv_sym2(S: np.ndarray) -> np.ndarray:
@@ -142,9 +165,12 @@ def solve_camera_pose(
     sigma_img_px: float = 0.5,
     method: str = "map",
     iterations: int = 8,
+    point_poses: PointPoses | None = None,
 ) -> PoseSolution | None:
     """Camera centre and attitude from N >= 4 correspondences X_ned_m (N, 3) <-> uv_px (N, 2)
-    (full-resolution undistorted pixels), seeded with the estimated pose (centre0, R_nc0)."""
+    (full-resolution undistorted pixels), seeded with the estimated pose (centre0, R_nc0).
+    point_poses: each point's own pose relative to the one solved for (a rolling shutter's
+    rows; None: one pose for all, a global shutter)."""
     X = np.asarray(X_ned_m, float)
     uv = np.asarray(uv_px, float)
     if len(X) < 4:
@@ -168,7 +194,7 @@ def solve_camera_pose(
         iterations = 0
     for rnd in range(2):
         for _ in range(iterations):
-            r, J, W = _linearise(K, R, c, X[inl], uv[inl], sigma_ground_m, sigma_img_px)
+            r, J, W = _linearise(K, R, c, X[inl], uv[inl], sigma_ground_m, sigma_img_px, _take(point_poses, inl))
             A, b = _normal_equations(J, W, r)
             if P_prior_inv is not None:
                 psi = _log(R @ R_nc0.T)  # NED attitude deviation from the INS
@@ -183,7 +209,7 @@ def solve_camera_pose(
             R = R @ _exp(dx[3:])
             if np.linalg.norm(dx[:3]) < 1e-4 and np.linalg.norm(dx[3:]) < 1e-8:
                 break
-        r, J, W = _linearise(K, R, c, X, uv, sigma_ground_m, sigma_img_px)
+        r, J, W = _linearise(K, R, c, X, uv, sigma_ground_m, sigma_img_px, point_poses)
         d2 = np.einsum("nk,nkl,nl->n", r, W, r)
         new_inl = d2 < CHI2_2DOF_999
         if rnd == 1 or new_inl.sum() < 4 or (new_inl == inl).all():
@@ -191,7 +217,7 @@ def solve_camera_pose(
         inl = new_inl
         if method == "opencv":
             iterations = 8  # refine the inlier set with Gauss-Newton
-    r, J, W = _linearise(K, R, c, X[inl], uv[inl], sigma_ground_m, sigma_img_px)
+    r, J, W = _linearise(K, R, c, X[inl], uv[inl], sigma_ground_m, sigma_img_px, _take(point_poses, inl))
     A_img, b_img = _normal_equations(J, W, r)  # information of the image alone
     A = A_img.copy()
     Jpsi = _prior_jacobian(R)
