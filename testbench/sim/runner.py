@@ -218,6 +218,7 @@ def _run_info(loaded: LoadedScenario, engine: Engine, world: RunWorld, result: E
         "aid_counters": _aid_counters(engine),
         "camera_boresight_error_deg": _camera_boresights(engine),
         "camera_time_offset_s": _camera_time_offsets(engine),
+        "camera_intrinsics_error": _camera_intrinsics_errors(engine),
         "camera_time_offset_estimated": {v.id: v.navigator.time_offset_camera for v in engine.vehicles
                                          if getattr(v.navigator, "time_offset_camera", None)},
         "camera_boresight_estimated": {v.id: v.navigator.boresight_camera for v in engine.vehicles
@@ -227,30 +228,46 @@ def _run_info(loaded: LoadedScenario, engine: Engine, world: RunWorld, result: E
     }
 
 
+def _camera_truths(engine: Engine, value: Callable[[Any], Any]) -> dict[str, dict[str, Any]]:
+    """vehicle id -> sensor name -> value(sensor), for the sensors whose value is not None."""
+    out: dict[str, dict[str, Any]] = {}
+    for v in engine.vehicles:
+        for slot in v.sensors:
+            x = value(slot.sensor)
+            if x is not None:
+                out.setdefault(v.id, {})[slot.name] = x
+    return out
+
+
 def _camera_boresights(engine: Engine) -> dict[str, dict[str, list[float]]]:
     """vehicle id -> camera name -> its true boresight error (roll, pitch, yaw about body x, y,
     z; deg; CameraSensor.boresight_error_deg), for the cameras that have one: the truth a
     navigator's boresight estimate is scored against."""
-    out: dict[str, dict[str, list[float]]] = {}
-    for v in engine.vehicles:
-        for slot in v.sensors:
-            err = getattr(slot.sensor, "boresight_error_deg", None)
-            if err is not None and np.any(err):
-                out.setdefault(v.id, {})[slot.name] = [float(x) for x in err]
-    return out
+    def value(sensor):
+        err = getattr(sensor, "boresight_error_deg", None)
+        return [float(x) for x in err] if err is not None and np.any(err) else None
+
+    return _camera_truths(engine, value)
 
 
 def _camera_time_offsets(engine: Engine) -> dict[str, dict[str, float]]:
     """vehicle id -> camera name -> its frames' stamp minus their true exposure time (s;
     CameraSensor.time_offset_s), for the cameras whose clock is off: the truth an estimate of
     the offset is scored against."""
-    out: dict[str, dict[str, float]] = {}
-    for v in engine.vehicles:
-        for slot in v.sensors:
-            offset = getattr(slot.sensor, "time_offset_s", 0.0)
-            if offset:
-                out.setdefault(v.id, {})[slot.name] = float(offset)
-    return out
+    return _camera_truths(engine, lambda sensor: float(getattr(sensor, "time_offset_s", 0.0)) or None)
+
+
+def _camera_intrinsics_errors(engine: Engine) -> dict[str, dict[str, dict[str, Any]]]:
+    """vehicle id -> camera name -> {focal_error_rel, principal_point_error_px: [u, v]} of its
+    true intrinsics against the calibrated ones (CameraSensor.intrinsics_error), for the cameras
+    that have an error."""
+    def value(sensor):
+        err = getattr(sensor, "intrinsics_error", None)
+        if err is None or not any(err):
+            return None
+        return {"focal_error_rel": float(err[0]), "principal_point_error_px": [float(err[1]), float(err[2])]}
+
+    return _camera_truths(engine, value)
 
 
 def _aid_counters(engine: Engine) -> dict[str, dict[str, dict[str, int]]]:

@@ -157,13 +157,7 @@ class Orthorectifier:
     def _relief_grid(self, K_s, c, R_cn, north0, east0, g, shape, height_fn, step=8):
         """(u, v, step): camera coordinates (small frame px, float32 (nr, nc)) of the ortho
         points (k + 1/2) step - 1/2 over relief; -1e5 behind the camera."""
-        H_o, W_o = shape
-        nr, nc = -(-H_o // step), -(-W_o // step)
-        rows = (np.arange(nr) + 0.5) * step - 0.5
-        cols = (np.arange(nc) + 0.5) * step - 0.5
-        cc, rr = np.meshgrid(cols, rows)
-        north = north0 - (rr.ravel() + 0.5) * g
-        east = east0 + (cc.ravel() + 0.5) * g
+        north, east, (nr, nc) = _grid_points(north0, east0, g, shape, step)
         down = height_fn(north, east)
         xc = R_cn @ (np.vstack([north, east, down]) - c[:, None])
         front = xc[2] > 1e-3
@@ -175,11 +169,7 @@ class Orthorectifier:
     def _rolling_grid(self, K_s, motion: RowMotion, c, R_nc, north0, east0, g, shape, ground_down_m, height_fn, step=8):
         """(u, v, step) as _relief_grid, the ground (the plane ground_down_m, or height_fn's)
         projected through the rolling shutter's rows (RowMotion.project)."""
-        H_o, W_o = shape
-        nr, nc = -(-H_o // step), -(-W_o // step)
-        cc, rr = np.meshgrid((np.arange(nc) + 0.5) * step - 0.5, (np.arange(nr) + 0.5) * step - 0.5)
-        north = north0 - (rr.ravel() + 0.5) * g
-        east = east0 + (cc.ravel() + 0.5) * g
+        north, east, (nr, nc) = _grid_points(north0, east0, g, shape, step)
         down = np.full_like(north, ground_down_m) if height_fn is None else height_fn(north, east)
         uv = motion.project(c, R_nc, np.c_[north, east, down])
         sx, sy = K_s[0, 0] / self.camera.fx, K_s[1, 1] / self.camera.fy
@@ -320,6 +310,16 @@ class _FrameWarp:
         if sub == 0:
             return pyramid(*self.render(0, 0, self.shape[1], self.shape[0]), level)[level]
         return pyramid(*self.render_level(sub), level - sub)[level - sub]
+
+
+def _grid_points(north0: float, east0: float, g: float, shape: tuple[int, int], step: int):
+    """(north (n,), east (n,), (nr, nc)): NED north / east (m) of the ortho points
+    (k + 1/2) step - 1/2 of a grid of shape (H, W) from (north0, east0) at g m per pixel,
+    row-major over the (nr, nc) blocks."""
+    H_o, W_o = shape
+    nr, nc = -(-H_o // step), -(-W_o // step)
+    cc, rr = np.meshgrid((np.arange(nc) + 0.5) * step - 0.5, (np.arange(nr) + 0.5) * step - 0.5)
+    return north0 - (rr.ravel() + 0.5) * g, east0 + (cc.ravel() + 0.5) * g, (nr, nc)
 
 
 def _grid_crop(grid_step: tuple[np.ndarray, int], x0: int, y0: int, w: int, h: int) -> np.ndarray:

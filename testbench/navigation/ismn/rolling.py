@@ -15,9 +15,9 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from testbench.core.camera_geometry import PinholeCamera, row_delay_s
-from testbench.core.rotations import quat_to_dcm, rotvec_to_quat
 from testbench.navigation.ismn.pose import PointPoses
 
 
@@ -43,7 +43,7 @@ class RowMotion:
     def point_poses(self, uv_px: np.ndarray) -> PointPoses:
         """Each pixel's camera pose relative to the middle row's (pose.PointPoses)."""
         dt = self.delays_s(uv_px)
-        turns = np.stack([quat_to_dcm(rotvec_to_quat(self.omega_ned_rps * t)) for t in dt]) if len(dt) else np.zeros((0, 3, 3))
+        turns = Rotation.from_rotvec(dt[:, None] * self.omega_ned_rps).as_matrix() if len(dt) else np.zeros((0, 3, 3))
         return PointPoses(dt[:, None] * self.vel_ned_mps, turns)
 
     def project(self, centre_ned_m: np.ndarray, R_nc: np.ndarray, P_ned_m: np.ndarray, iterations: int = 3) -> np.ndarray:

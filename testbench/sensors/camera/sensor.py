@@ -2,15 +2,21 @@
 
 `CameraSensor` (registered as sensor type "camera") holds the camera model of the paper's
 table 1 (size, intrinsics or field of view, lens distortion, noise, clipping, mounting angles
-and lever arm, frame rate, exposure/gain, vignetting, motion blur). Its mounting as calibrated
-(`.mount`, what navigation is given) can differ from the mounting that renders
-(`.true_mount`) by a boresight error (`mount_error_deg`, `mount_error_sigma_deg`); its clock can
-be off the IMU's (`time_offset_s`: the frame seen from the pose of its exposure), and a rolling
-shutter (`readout_s`) exposes its rows one after another, each band of rows rendered from the pose
-of its own time (rolling_shutter.py). At each frame it asks the
-world for the imagery (and elevation) under its footprint at a suitable ground sample, the
-other vehicles in view with their LED states, and which regions to render (a relative-
-navigation aid may ask for regions around its tracks only); then it calls the pure renderer.
+and lever arm, frame rate, exposure/gain, vignetting, motion blur). What navigation is given
+can differ from what renders:
+- the mounting as calibrated (`.mount`) from the true one (`.true_mount`) by a boresight error
+  (`mount_error_deg`, `mount_error_sigma_deg`);
+- the intrinsics as calibrated (`.camera`) from the true ones (`.true_camera`) by a focal
+  length and a principal point error (`focal_error_rel`, `principal_point_error_px` and their
+  sigmas);
+- the frame's stamp from its exposure by a clock offset (`time_offset_s`: the frame is seen
+  from the pose of its exposure);
+- a rolling shutter (`readout_s`) exposes the rows one after another, each band of rows
+  rendered from the pose of its own time (rolling_shutter.py).
+At each frame it asks the world for the imagery (and elevation) under its footprint at a
+suitable ground sample, the other vehicles in view with their LED states, and which regions to
+render (a relative-navigation aid may ask for regions around its tracks only); then it calls
+the pure renderer.
 
 The world object it reads is the engine's tick view (`CameraWorld` protocol below).
 """
@@ -72,8 +78,8 @@ class CameraFrame:
     the vehicles it shows); vehicles: truth annotations (full-frame pixels) of the other vehicles;
     offmap_fraction: share of the rendered pixels that look at ground off the map (no-data);
     camera, mount: the camera model (K, distortion) and the mounting as calibrated (R_bc
-    camera->body, lever arm: CameraSensor.mount, not the true one when the camera has a
-    boresight error), which is what navigation may use; cloud_fraction: share of the rendered
+    camera->body, lever arm: CameraSensor.camera and .mount, not the true ones when the camera
+    has an intrinsics or a boresight error), which is what navigation may use; cloud_fraction: share of the rendered
     pixels looking at the ground that a cloud takes half the light of or more;
     shadow_fraction: share of them that show ground in a cloud's shadow (RenderedFrame; both
     truth, for scoring alone, as offmap_fraction); exposure_pos_ned_m (3,): where the vehicle
@@ -131,6 +137,18 @@ class CameraParams(ParamsModel):
     time_offset_sigma_s: float = pydantic.Field(
         0.0, ge=0, le=0.1, description="a random time offset on top of time_offset_s, drawn once per run (s, 1 sigma) "
         "from the run's seeded streams when the vehicle is built")
+    focal_error_rel: float = pydantic.Field(
+        0.0, ge=-0.05, le=0.05, description="the true focal length's error relative to the calibrated one: the lens "
+        "renders with fx (1 + e), fy (1 + e); navigation knows only the calibrated intrinsics")
+    focal_error_sigma_rel: float = pydantic.Field(
+        0.0, ge=0, le=0.02, description="a random focal length error on top of focal_error_rel, drawn once per run "
+        "(relative, 1 sigma) from the run's seeded streams when the vehicle is built")
+    principal_point_error_px: tuple[float, float] = pydantic.Field(
+        (0.0, 0.0), description="the true principal point minus the calibrated one (px: u right, v down); navigation "
+        "knows only the calibrated one")
+    principal_point_error_sigma_px: float = pydantic.Field(
+        0.0, ge=0, le=20.0, description="a random principal point error on top of principal_point_error_px, drawn once "
+        "per run (px per axis, 1 sigma)")
     readout_s: float = pydantic.Field(
         0.0, ge=0, le=0.1, description="rolling shutter: the time from the first row's exposure to the last's (s; 0: a "
         "global shutter). The stamp and time_offset_s refer to the middle row; row v is exposed readout_s * "
@@ -187,6 +205,12 @@ class CameraSensor(Sensor):
         self.true_mount = _misaligned(self.mount, self.boresight_error_deg)
         self.time_offset_s = float(p.time_offset_s)
         """The frame's stamp minus its true exposure time (s; time_offset_s plus the run's draw)."""
+        # The intrinsics as calibrated (.camera, what navigation is given) and the true ones that
+        # render: they differ by the calibration error, whose random part draw_constant_errors adds.
+        self.intrinsics_error = (float(p.focal_error_rel), *(float(x) for x in p.principal_point_error_px))
+        """(focal length relative error, principal point error u, v (px)): the true intrinsics'
+        departure from the calibrated ones."""
+        self.true_camera = _miscalibrated(self.camera, self.intrinsics_error)
         self._options = RenderOptions(
             near_m=p.near_m, far_m=p.far_m, noise_mean=p.noise_mean, noise_std=p.noise_std, gain=p.gain,
             vignetting=p.vignetting, haze_visibility_m=p.haze_visibility_m,
@@ -194,7 +218,7 @@ class CameraSensor(Sensor):
         self._last: tuple[float, CameraFrame | None] | None = None
         self._warned_offmap = False
         # Unit rays of the frame's border (camera frame), for the ground footprint.
-        self._border_rays_c = _border_rays(self.camera)
+        self._border_rays_c = _border_rays(self.true_camera)
 
     # -- Sensor ---------------------------------------------------------------------------
     def measure(self, truth: TruthState, world: Any, rng: np.random.Generator) -> CameraFrame | None:
@@ -208,7 +232,8 @@ class CameraSensor(Sensor):
     def draw_constant_errors(self, rng: np.random.Generator) -> None:
         """Draw the run's random boresight error (mount_error_sigma_deg per axis, on top of
         mount_error_deg), then its random time offset (time_offset_sigma_s, on top of
-        time_offset_s), from rng, a stream of its own (the engine's vehicle builder calls it
+        time_offset_s), then its random intrinsics error (focal_error_sigma_rel, then
+        principal_point_error_sigma_px per axis), from rng, a stream of its own (the engine's vehicle builder calls it
         once, before the run: so the record holds them, whichever process renders). Nothing is
         drawn without a sigma."""
         p = self.params
@@ -220,6 +245,16 @@ class CameraSensor(Sensor):
         if p.time_offset_sigma_s > 0.0:
             self.time_offset_s = float(np.clip(p.time_offset_s + p.time_offset_sigma_s * rng.standard_normal(), -0.25, 0.25))
             log.info("camera %s: time offset %.4f s (stamp minus exposure)", self.name, self.time_offset_s)
+        if p.focal_error_sigma_rel > 0.0 or p.principal_point_error_sigma_px > 0.0:
+            focal, du, dv = self.intrinsics_error
+            if p.focal_error_sigma_rel > 0.0:
+                focal = float(np.clip(focal + p.focal_error_sigma_rel * rng.standard_normal(), -0.05, 0.05))
+            if p.principal_point_error_sigma_px > 0.0:
+                du, dv = (float(x) for x in (du, dv) + p.principal_point_error_sigma_px * rng.standard_normal(2))
+            self.intrinsics_error = (focal, du, dv)
+            self.true_camera = _miscalibrated(self.camera, self.intrinsics_error)
+            self._border_rays_c = _border_rays(self.true_camera)
+            log.info("camera %s: focal length error %.5f, principal point error %.3f / %.3f px", self.name, focal, du, dv)
 
     def _render(self, truth: TruthState, world: Any, rng: np.random.Generator) -> CameraFrame | None:
         # The true pose at the exposure (the tick's, unless the camera's clock is off).
@@ -244,11 +279,11 @@ class CameraSensor(Sensor):
         vehicles = tuple(world.appearances(truth.t_s)) if self.params.render_vehicles and hasattr(world, "appearances") else ()
         opts = self._options
         if self.params.exposure_s > 0.0:
-            opts = _with_motion_blur(opts, self.camera, R_nc, truth, self.params.exposure_s)
+            opts = _with_motion_blur(opts, self.true_camera, R_nc, truth, self.params.exposure_s)
         obstacles = tuple(getattr(world, "obstacles", ()) or ())
         clouds = world.clouds() if hasattr(world, "clouds") else None
         rois = [None] if requests is None else list(requests)
-        cam = self.camera
+        cam = self.true_camera
         readout = self.params.readout_s
 
         def render_box(box, pos_ned_m, R_nb_):
@@ -289,7 +324,7 @@ class CameraSensor(Sensor):
         """A frame without pixels: zero-stride black images of the requested regions, with the
         truth of the other vehicles (projected, nothing drawn; hidden by obstacles and clouds,
         not by terrain)."""
-        cam = self.camera
+        cam = self.true_camera
         vehicles = tuple(world.appearances(truth.t_s)) if self.params.render_vehicles and hasattr(world, "appearances") else ()
         scratch = np.zeros((1, 1, 3), np.uint8)
         far = (-(10**7), -(10**7))  # the scratch region lies off every vehicle: nothing is drawn
@@ -344,10 +379,20 @@ class CameraSensor(Sensor):
         n0, e0 = pts.min(axis=0)
         n1, e1 = pts.max(axis=0)
         # Finest useful ground sample: a pixel's footprint straight below (or nearest point).
-        gsd_near = h / max(self.camera.fx, self.camera.fy)
+        gsd_near = h / max(self.true_camera.fx, self.true_camera.fy)
         extent = max(n1 - n0, e1 - e0)
         gsd = max(gsd_near, extent / self.params.max_window_px)
         return (float(n0), float(n1), float(e0), float(e1)), float(gsd)
+
+
+def _miscalibrated(camera: PinholeCamera, error: tuple[float, float, float]) -> PinholeCamera:
+    """The true intrinsics of a calibrated camera: focal lengths scaled by 1 + error[0], the
+    principal point moved by (error[1], error[2]) px; the same size and lens distortion."""
+    focal, du, dv = error
+    if not (focal or du or dv):
+        return camera
+    return PinholeCamera(camera.width_px, camera.height_px, camera.fx * (1.0 + focal), camera.fy * (1.0 + focal),
+                         camera.cx + du, camera.cy + dv, tuple(camera.dist))
 
 
 def _misaligned(mount: CameraMount, error_rpy_deg: np.ndarray) -> CameraMount:

@@ -7,38 +7,24 @@ import numpy as np
 import pydantic
 import pytest
 from conftest import raster, textured
+from test_camera_sensor import TinyWorld
+from test_camera_sensor import _sensor as camera_sensor
 
-from testbench.core.interfaces import BuildContext
 from testbench.sensors.camera import CameraSensor
 from testbench.sensors.camera.rolling_shutter import row_delay_s, split_rows
-from testbench.sensors.fakes import ORIGIN, make_truth
+from testbench.sensors.fakes import make_truth
 
 
-class OneMapWorld:
-    """CameraWorld over one in-memory map (flat ground at the origin's height)."""
+class OneMapWorld(TinyWorld):
+    """TinyWorld over a map of one's own (flat ground at the origin's height)."""
 
     def __init__(self, data: np.ndarray, gsd_m: float, requests=None):
-        self.self_id = "uav0"
+        super().__init__(requests)
         self.map = raster(data, gsd_m)
-        self._requests = requests
-
-    def imagery_for(self, bounds_ne_m, gsd_m):
-        return self.map
-
-    def elevation_for(self, bounds_ne_m):
-        return None
-
-    def appearances(self, t_s):
-        return ()
-
-    def render_requests(self, camera_name):
-        return self._requests
 
 
 def _sensor(**kw) -> CameraSensor:
-    params = CameraSensor.Params(**{"width_px": 160, "height_px": 90, "hfov_deg": 90.0, "rate_hz": 5.0,
-                                    "noise_std": 0.0, **kw})
-    return CameraSensor(params, ctx=BuildContext("uav0", ("uav0",), ORIGIN, physics_rate_hz=100.0))
+    return camera_sensor(**{"noise_std": 0.0, **kw})
 
 
 def _dot_map(north_m: float, east_m: float, gsd_m: float = 0.25, n: int = 1200) -> np.ndarray:
