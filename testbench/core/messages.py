@@ -201,6 +201,12 @@ class PositionFix:
     navigation: a window's offset from a dead-reckoned track), so its error holds
     tau (v_est - v_true), or L (v_est - v_true) where the lag differs by axis; a navigator fuses
     it with H_v = -tau (-L). None: no such term.
+
+    intrinsics_sensitivity (3, 3): how the fix moves (NED m) with an error of the camera's
+    intrinsics left in the producer's solve, per column: its principal point's u and v (m per
+    px: the true one minus the one solved with) and its focal length's relative error (m per
+    unit: true = solved (1 + e)), for a navigator that carries those errors as states; None
+    when the producer does not say.
     """
 
     t_s: float
@@ -216,6 +222,7 @@ class PositionFix:
     image_pos_ned_m: np.ndarray | None = None
     image_R_nb: np.ndarray | None = None
     image_pose_cov: np.ndarray | None = None
+    intrinsics_sensitivity: np.ndarray | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -252,6 +259,11 @@ class NavEstimate:
         scene-matching camera (its frames' stamp minus their exposure, s) and its variance, when
         the navigator estimates it, else None. A scene matcher takes the pose that long before a
         frame's stamp as its prior.
+    camera_intrinsics_error (3,), cov_camera_intrinsics_error (3, 3): the estimated error of
+        the scene-matching camera's intrinsics, [principal point u, v (px: the true one minus
+        the calibrated one), focal length (relative: true = calibrated (1 + e))], and its
+        covariance, when the navigator estimates it, else None. A scene matcher solves with the
+        intrinsics corrected by it.
     """
 
     t_s: float
@@ -270,6 +282,8 @@ class NavEstimate:
     cov_camera_boresight_rad2: np.ndarray | None = None
     camera_time_offset_s: float | None = None
     var_camera_time_offset_s2: float | None = None
+    camera_intrinsics_error: np.ndarray | None = None
+    cov_camera_intrinsics_error: np.ndarray | None = None
 
 
 @dataclass(frozen=True, slots=True)

@@ -17,7 +17,8 @@ from testbench.core.rotations import dcm_to_quat, euler_to_dcm, quat_to_rotvec, 
 from testbench.scoring.phases import telemetry_turning
 from testbench.scoring.record_io import RunRecord, column
 from testbench.scoring.result import (
-    CameraBoresightStats, CameraTimeOffsetStats, GnssSkyStats, NavMetrics, NavSubset, NisStats, SpoofedNav,
+    CameraBoresightStats, CameraIntrinsicsStats, CameraTimeOffsetStats, GnssSkyStats, NavMetrics, NavSubset,
+    NisStats, SpoofedNav,
 )
 from testbench.scoring.stats import ChiSquareStats, chi_square_stats, error_stats
 
@@ -232,6 +233,50 @@ def camera_time_offset_stats(record: RunRecord, err: np.ndarray, sig: np.ndarray
                                  final_sigma_ms=max(float(sig_ms[i]) for i in last) if last else None)
 
 
+_INTRINSICS = ("pp_u_px", "pp_v_px", "focal_rel")
+
+
+def intrinsics_errors(record: RunRecord) -> tuple[np.ndarray, np.ndarray] | None:
+    """((n, 3) estimated minus true intrinsics error, (n, 3) claimed sigmas): principal point
+    u, v (px), focal length (relative); NaN on rows without an estimate; None when the record
+    has no intrinsics columns or no estimate. The truth: run.json camera_intrinsics_error of
+    the camera camera_intrinsics_estimated names (zero when it has none)."""
+    tel = record.telemetry
+    if "nav_camera_pp_u_px" not in tel.columns:
+        return None
+    est = np.stack([column(tel, f"nav_camera_{k}") for k in _INTRINSICS], axis=1)
+    sig = np.stack([column(tel, f"nav_sigma_camera_{k}") for k in _INTRINSICS], axis=1)
+    truth = np.zeros_like(est)
+    errors = record.run_info.get("camera_intrinsics_error") or {}
+    vehicles = tel["vehicle_id"].to_numpy()
+    for vid, camera in (record.run_info.get("camera_intrinsics_estimated") or {}).items():
+        e = (errors.get(vid) or {}).get(camera)
+        if e is not None:
+            truth[vehicles == vid] = [*e["principal_point_error_px"], e["focal_error_rel"]]
+    err = est - truth
+    return (err, sig) if np.isfinite(err).all(axis=1).any() else None
+
+
+def camera_intrinsics_stats(record: RunRecord, err: np.ndarray, sig: np.ndarray) -> CameraIntrinsicsStats:
+    """CameraIntrinsicsStats of the intrinsics errors err (n, 3) and sigmas sig (n, 3)
+    (intrinsics_errors)."""
+    pp_px = np.linalg.norm(err[:, :2], axis=1)
+    ok = np.isfinite(pp_px) & np.isfinite(err[:, 2])
+    denied = denied_mask(record) & ok
+    vehicles = record.telemetry["vehicle_id"].to_numpy()
+    last = [np.flatnonzero((vehicles == vid) & ok)[-1] for vid in np.unique(vehicles[ok])]
+
+    def worst(values):
+        return max(float(x) for x in values) if last else None
+
+    return CameraIntrinsicsStats(
+        principal_point_error_px=error_stats(pp_px[denied] if denied.any() else pp_px[ok]),
+        final_principal_point_error_px=worst(pp_px[i] for i in last),
+        final_principal_point_sigma_px=worst(np.linalg.norm(sig[i, :2]) for i in last),
+        final_focal_error_ppm=worst(1e6 * abs(err[i, 2]) for i in last),
+        final_focal_sigma_ppm=worst(1e6 * sig[i, 2] for i in last))
+
+
 def _subset(e3: np.ndarray, eh: np.ndarray, pct: np.ndarray, dur: np.ndarray, mask: np.ndarray) -> NavSubset | None:
     if not mask.any():
         return None
@@ -355,6 +400,11 @@ def compute_nav(record: RunRecord) -> NavMetrics | None:
         s = chi_square_stats(_diag_nees(time_offset[0][:, None], time_offset[1][:, None]), 1)
         if s is not None:
             nees["camera_time_offset"] = s
+    intrinsics = intrinsics_errors(record)
+    if intrinsics is not None:
+        s = chi_square_stats(_diag_nees(*intrinsics), 3)
+        if s is not None:
+            nees["camera_intrinsics"] = s
 
     return NavMetrics(
         position_error_m=error_stats(np.linalg.norm(e3, axis=1)),
@@ -372,6 +422,7 @@ def compute_nav(record: RunRecord) -> NavMetrics | None:
         gnss_sky=gnss_sky_stats(record),
         camera_boresight=None if boresight is None else camera_boresight_stats(record, *boresight),
         camera_time_offset=None if time_offset is None else camera_time_offset_stats(record, *time_offset),
+        camera_intrinsics=None if intrinsics is None else camera_intrinsics_stats(record, *intrinsics),
     )
 
 

@@ -108,6 +108,23 @@ class CameraTimeOffsetStats(_Section):
 
 
 @dataclass(frozen=True)
+class CameraIntrinsicsStats(_Section):
+    """A navigator's estimate of its scene-matching camera's intrinsics error against the true
+    one (run.json camera_intrinsics_error of the camera in camera_intrinsics_estimated, 0 where
+    it has none): principal_point_error_px, ErrorStats of |estimate - truth| of the principal
+    point (px, both axes) over the GNSS-denied rows (all rows without any);
+    final_principal_point_error_px / final_principal_point_sigma_px (the norm of the two
+    sigmas) and final_focal_error_ppm / final_focal_sigma_ppm (parts per million of the focal
+    length) at each vehicle's last row (the largest over vehicles)."""
+
+    principal_point_error_px: ErrorStats | None = None
+    final_principal_point_error_px: float | None = None
+    final_principal_point_sigma_px: float | None = None
+    final_focal_error_ppm: float | None = None
+    final_focal_sigma_ppm: float | None = None
+
+
+@dataclass(frozen=True)
 class NavSubset(_Section):
     """Navigation error over a subset of time (GNSS-denied, smooth, turning).
 
@@ -178,7 +195,9 @@ class NavMetrics(_Section):
     camera_boresight: the estimate of the scene-matching camera's boresight against its truth
     (CameraBoresightStats, with nees "camera_boresight", 3 dof), None where no navigator
     estimates one; camera_time_offset: the same of the camera's time offset
-    (CameraTimeOffsetStats, nees "camera_time_offset", 1 dof).
+    (CameraTimeOffsetStats, nees "camera_time_offset", 1 dof);
+    camera_intrinsics: the same of its intrinsics error (CameraIntrinsicsStats, nees
+    "camera_intrinsics", 3 dof: principal point u, v and focal length).
     """
 
     position_error_m: ErrorStats | None = None
@@ -196,6 +215,7 @@ class NavMetrics(_Section):
     gnss_sky: GnssSkyStats | None = None
     camera_boresight: CameraBoresightStats | None = None
     camera_time_offset: CameraTimeOffsetStats | None = None
+    camera_intrinsics: CameraIntrinsicsStats | None = None
 
 
 @dataclass(frozen=True)

@@ -58,6 +58,13 @@ TELEMETRY_BORESIGHT_COLUMNS = (
 # camera's time offset (stamp minus exposure, s) with its sigma (NaN where it estimates none).
 TELEMETRY_TIME_OFFSET_COLUMNS = ("nav_camera_time_offset_s", "nav_sigma_camera_time_offset_s")
 
+# With Recorder(intrinsics_columns=True): the navigator's estimate of its scene-matching
+# camera's intrinsics error (principal point true minus calibrated, px, u and v; focal length,
+# relative) with its sigmas.
+_INTRINSICS = ("pp_u_px", "pp_v_px", "focal_rel")
+TELEMETRY_INTRINSICS_COLUMNS = (tuple(f"nav_camera_{k}" for k in _INTRINSICS)
+                                + tuple(f"nav_sigma_camera_{k}" for k in _INTRINSICS))
+
 _NAN = float("nan")
 
 
@@ -66,16 +73,19 @@ class Recorder:
     TELEMETRY_WIND_COLUMNS (a scenario with wind, or a navigator that estimates it);
     boresight_columns: add TELEMETRY_BORESIGHT_COLUMNS (a navigator that estimates its camera's
     boresight); time_offset_columns: add TELEMETRY_TIME_OFFSET_COLUMNS (a navigator that
-    estimates its camera's time offset)."""
+    estimates its camera's time offset); intrinsics_columns: add TELEMETRY_INTRINSICS_COLUMNS
+    (a navigator that estimates its camera's intrinsics error)."""
 
     def __init__(self, wind_columns: bool = False, boresight_columns: bool = False,
-                 time_offset_columns: bool = False) -> None:
+                 time_offset_columns: bool = False, intrinsics_columns: bool = False) -> None:
         self._wind_columns = bool(wind_columns)
         self._boresight_columns = bool(boresight_columns)
         self._time_offset_columns = bool(time_offset_columns)
+        self._intrinsics_columns = bool(intrinsics_columns)
         self._float_columns = (TELEMETRY_FLOAT_COLUMNS + (TELEMETRY_WIND_COLUMNS if wind_columns else ())
                                + (TELEMETRY_BORESIGHT_COLUMNS if boresight_columns else ())
-                               + (TELEMETRY_TIME_OFFSET_COLUMNS if time_offset_columns else ()))
+                               + (TELEMETRY_TIME_OFFSET_COLUMNS if time_offset_columns else ())
+                               + (TELEMETRY_INTRINSICS_COLUMNS if intrinsics_columns else ()))
         self._tel: dict[str, list] = {c: [] for c in self._float_columns}
         self._vehicle: list[str] = []
         self._leg: list[int] = []
@@ -142,6 +152,11 @@ class Recorder:
             td, var = est.camera_time_offset_s, est.var_camera_time_offset_s2
             c["nav_camera_time_offset_s"].append(_NAN if td is None else float(td))
             c["nav_sigma_camera_time_offset_s"].append(_NAN if var is None else math.sqrt(max(var, 0.0)))
+        if self._intrinsics_columns:
+            err, cov = est.camera_intrinsics_error, est.cov_camera_intrinsics_error
+            for i, k in enumerate(_INTRINSICS):
+                c[f"nav_camera_{k}"].append(_NAN if err is None else float(err[i]))
+                c[f"nav_sigma_camera_{k}"].append(_NAN if cov is None else math.sqrt(max(float(cov[i, i]), 0.0)))
         self._vehicle.append(vehicle_id)
         self._leg.append(int(s.leg_index))
         self._on_leg.append(bool(s.on_leg))

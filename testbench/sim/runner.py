@@ -80,7 +80,8 @@ def build_engine(
     # runs whose navigators carry no wind keep their columns as before).
     recorder = Recorder(wind_columns=scn.world.wind is not None or any(rt.navigator.estimates_wind for rt in vehicles),
                         boresight_columns=any(getattr(rt.navigator, "estimates_camera_boresight", False) for rt in vehicles),
-                        time_offset_columns=any(getattr(rt.navigator, "time_offset_camera", None) for rt in vehicles))
+                        time_offset_columns=any(getattr(rt.navigator, "time_offset_camera", None) for rt in vehicles),
+                        intrinsics_columns=any(getattr(rt.navigator, "intrinsics_camera", None) for rt in vehicles))
     engine = Engine(
         vehicles, world, scn.physics_rate_hz, scn.duration_s, record_every, recorder,
         realtime=realtime, on_progress=on_progress, frame_sink=frame_sink, formation=scn.formation,
@@ -223,6 +224,8 @@ def _run_info(loaded: LoadedScenario, engine: Engine, world: RunWorld, result: E
                                          if getattr(v.navigator, "time_offset_camera", None)},
         "camera_boresight_estimated": {v.id: v.navigator.boresight_camera for v in engine.vehicles
                                        if getattr(v.navigator, "boresight_camera", None)},
+        "camera_intrinsics_estimated": {v.id: v.navigator.intrinsics_camera for v in engine.vehicles
+                                        if getattr(v.navigator, "intrinsics_camera", None)},
         # The code, library builds and CPU features the record's bits depend on (provenance).
         "environment": environment(),
     }

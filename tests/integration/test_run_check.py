@@ -7,6 +7,7 @@ import warnings
 from pathlib import Path
 
 import numpy as np
+import pytest
 import rasterio
 import yaml
 from rasterio.errors import NotGeoreferencedWarning
@@ -102,13 +103,16 @@ def test_check_refuses_replayed_late_fixes_beside_the_spoofing_monitor():
     assert ok.returncode == 0, ok.stderr
 
 
-def test_check_refuses_a_time_offset_state_without_one_scene_matcher():
-    """The camera time offset state is learnt from one ismn aid's fixes: without a scene matcher,
-    or beside the boresight states, the check names the key; with the main job's one aid it builds."""
-    offset = "vehicles.uav0.navigation.params.camera_time_offset={sigma_s: 0.03}"
+@pytest.mark.parametrize("key, value", [("camera_time_offset", "{sigma_s: 0.03}"),
+                                        ("camera_intrinsics", "{principal_point_sigma_px: 1.0}")])
+def test_check_refuses_camera_states_without_one_scene_matcher(key, value):
+    """The camera time offset and intrinsics states are learnt from one ismn aid's fixes: without
+    a scene matcher, or beside the boresight states, the check names the key; with the main
+    job's one aid it builds."""
+    offset = f"vehicles.uav0.navigation.params.{key}={value}"
     proc = _run(str(SCENARIOS / "ins_only_800m.yaml"), "--check", "--set", offset)
     assert proc.returncode == 2, proc.stdout + proc.stderr
-    assert "camera_time_offset" in proc.stderr and "ismn" in proc.stderr and "Traceback" not in proc.stderr
+    assert key in proc.stderr and "ismn" in proc.stderr and "Traceback" not in proc.stderr
     scenario = str(SCENARIOS / "paper_ismn_800m.yaml")
     both = _run(scenario, "--check", "--set", offset, "--set", "vehicles.uav0.navigation.params.camera_boresight={sigma_deg: 0.5}",
                 "--set", "vehicles.uav0.aids.ismn.pipeline.pose_from_image=true")

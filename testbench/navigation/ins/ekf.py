@@ -63,10 +63,11 @@ def chi2_threshold(probability: float, dof: int) -> float:
 class ErrorStateEKF(Reacquisition):
     """Error-state EKF of one vehicle. Shapes: P (n, n), n = self.n: N_STATES (25) with
     wind_states, else N_NO_WIND (23), plus 3 with the appearance states, 1 with the magnetic
-    heading bias, 2 with the optical flow's slow error and 3 with a camera's boresight error;
-    error vector layout in error_model (the appearance states, self.i_app, then the magnetic
-    bias, self.i_mag, then the flow's error, self.i_flow, then the boresight, self.i_cam, come
-    last).
+    heading bias, 2 with the optical flow's slow error, 3 with a camera's boresight error, 1 with
+    its time offset and 3 with its intrinsics error; error vector layout in error_model (the
+    appearance states, self.i_app, then the magnetic bias, self.i_mag, then the flow's error,
+    self.i_flow, then the boresight, self.i_cam, the time offset, self.i_td, and the
+    intrinsics, self.i_ci, come last).
 
     noise: IMU noise model; gate_probability: chi-square gate (e.g. 0.999; 1.0 disables);
     cov_interval_s: covariance propagation interval (0: every IMU sample);
@@ -119,6 +120,15 @@ class ErrorStateEKF(Reacquisition):
     the position td before its stamp, v td behind (at 25 m/s, 0.5 m per 20 ms), and seen through
     the attitude the image had then. Straight legs flown both ways tell it from the fixes' shared
     error, which does not turn with the track.
+    camera_intrinsics_sigma: 1-sigmas (3,) of the scene-matching camera's intrinsics error
+    [principal point u, v (px: the true one minus the calibrated one), focal length (relative:
+    true = calibrated (1 + e))] (all 0: no such states): three random constants after the
+    others (self.i_ci), learnt from the position fixes through their sensitivity to them
+    (PositionFix.intrinsics_sensitivity). Over flat ground a principal point error moves a fix
+    as a shift of the camera would, about height / focal per px (1.4 m per px at 800 m with a
+    1920 px, 120 deg camera), fixed in the camera's axes, so it turns with the track, which
+    tells it from the fixes' shared error and the INS's drift; a focal length error moves the
+    fix's height (0.8 m per 0.1 % at 800 m), which the barometer and GNSS see.
     gyro_scale_sigma, scale_corr_angle_rad: the gyros' scale-factor and cross-axis error (1 sigma,
     rad per rad turned) is a constant error in each rate the IMU reads, which the error state
     does not carry: it enters P as attitude noise per angle turned, s^2 Theta |dtheta| per axis,
@@ -144,7 +154,7 @@ class ErrorStateEKF(Reacquisition):
                  mag_bias_correlation_m: float = math.inf, flow_bias_sigma_rps: float = 0.0,
                  flow_bias_tau_s: float = math.inf, flow_bias_correlation_rad: float = math.inf,
                  camera_boresight_sigma_rad: float = 0.0, camera_time_offset_sigma_s: float = 0.0,
-                 vehicle_id: str | None = None):
+                 camera_intrinsics_sigma=(0.0, 0.0, 0.0), vehicle_id: str | None = None):
         if bias_model not in ("random_walk", "gauss_markov"):
             raise ValueError(f"bias_model {bias_model!r}: expected 'random_walk' or 'gauss_markov'")
         self.noise = noise
@@ -171,7 +181,11 @@ class ErrorStateEKF(Reacquisition):
         n_cam = n_flow + (3 if self.i_cam is not None else 0)
         self.i_td: int | None = n_cam if camera_time_offset_sigma_s > 0.0 else None
         """The scene-matching camera's time offset's state (its frames' stamp minus their exposure, s), or None."""
-        self.n = n_cam + (1 if self.i_td is not None else 0)
+        n_td = n_cam + (1 if self.i_td is not None else 0)
+        self.i_ci: slice | None = slice(n_td, n_td + 3) if np.any(np.asarray(camera_intrinsics_sigma) > 0.0) else None
+        """The scene-matching camera's intrinsics error's three states (principal point u, v px;
+        focal length, relative), or None."""
+        self.n = n_td + (3 if self.i_ci is not None else 0)
         """Number of error states (the length of dx, the size of P)."""
         # Correlation times of the IMU bias ERRORS in F (inf: random walk) and of the nominal biases.
         gm = bias_model == "gauss_markov"
@@ -202,6 +216,8 @@ class ErrorStateEKF(Reacquisition):
             self._qc = np.concatenate([self._qc, [0.0, 0.0, 0.0]])  # a constant: the mount does not move
         if self.i_td is not None:
             self._qc = np.concatenate([self._qc, [0.0]])  # a constant: the clocks' offset, not their drift
+        if self.i_ci is not None:
+            self._qc = np.concatenate([self._qc, [0.0, 0.0, 0.0]])  # constants: the lens's calibration
         self.ins: StrapdownINS | None = None
         self.b_g = np.zeros(3)
         self.b_a = np.zeros(3)
@@ -214,6 +230,7 @@ class ErrorStateEKF(Reacquisition):
         self.b_flow_rps = np.zeros(2)
         self.b_cam_rad = np.zeros(3)
         self.td_s = 0.0
+        self.intrinsics_error = np.zeros(3)
         self.flow_view_rate_rps = 0.0  # |translational flow| of the last flow sample (rad/s), held until the next
         self.wind_ne_mps = np.zeros(2)
         self.P = np.zeros((self.n, self.n))
@@ -239,6 +256,7 @@ class ErrorStateEKF(Reacquisition):
         self.b_flow_rps = np.zeros(2)
         self.b_cam_rad = np.zeros(3)
         self.td_s = 0.0
+        self.intrinsics_error = np.zeros(3)
         self.wind_ne_mps = np.zeros(2)
         self.P = np.array(P0, float)
         self._acc_T = 0.0
@@ -431,6 +449,8 @@ class ErrorStateEKF(Reacquisition):
             self.b_cam_rad = self.b_cam_rad + dx[self.i_cam]
         if self.i_td is not None:
             self.td_s += float(dx[self.i_td])
+        if self.i_ci is not None:
+            self.intrinsics_error = self.intrinsics_error + dx[self.i_ci]
 
     # ------------------------------------------------------------------ guard
     def _check(self, where: str) -> None:

@@ -32,7 +32,9 @@ Error convention (truth = nominal (+) error):
   (rad); dbf (2, optional, after dbm: ErrorStateEKF.i_flow): error of the optical flow's slowly
   varying error (rad/s, the flow camera's x and y); dbc (3, optional, last: ErrorStateEKF.
   i_cam): error of the scene-matching camera's boresight b_cam (body axes, rad: R_bc_true =
-  Exp(b_cam) R_bc), a constant. Likewise carried only when asked.
+  Exp(b_cam) R_bc), a constant; dtd (1, after dbc: ErrorStateEKF.i_td): error of its time offset
+  (s); dci (3, last: ErrorStateEKF.i_ci): error of its intrinsics error (principal point u, v
+  px; focal length, relative), constants. Likewise carried only when asked.
 The nominal biases are subtracted from the raw IMU data: omega = omega_meas - b_g.
 
 Continuous error dynamics (phi-angle model, Titterton & Weston ch. 12 / Groves ch. 14, in

@@ -1,7 +1,7 @@
 """How the INS/EKF navigator fuses a position fix (scene matching, terrain-aided navigation):
 the fix's white part against the shared fix error states, its coupling to the filter's
-attitude, the appearance states, the camera's boresight and time offset states, the image-only
-heading, and the gate with its reset after a run of refusals.
+attitude, the appearance states, the camera's boresight, time offset and intrinsics
+states, the image-only heading, and the gate with its reset after a run of refusals.
 
 `PositionFixFusion` is a part of InsEkfNavigator (navigator.py), kept apart so that the
 navigator reads as the dispatch of its measurements; it uses the navigator's `params`, `ekf`,
@@ -51,6 +51,10 @@ class PositionFixFusion:
                                     appearance_gain=self.appearance_gain(measurement.quality), vel_lag_s=lag)
         if offset is not None:
             H[:, ekf.i_td] = offset.position_column(M)
+        if ekf.i_ci is not None and measurement.intrinsics_sensitivity is not None:
+            # The fix was solved with the intrinsics corrected by the estimate (IsmnPipeline
+            # _solve_K): what is left of their error moves it by S (error - estimate).
+            H[:, ekf.i_ci] = measurement.intrinsics_sensitivity
         info = self._fuse_fix(f"position_fix:{measurement.source}", t, y, H, R)
         if p.use_fix_heading and measurement.heading_rad is not None and info is not None and info.accepted:
             # The image-only heading of the same solve: nearly uncorrelated with its centre in

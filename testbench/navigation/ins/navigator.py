@@ -112,6 +112,7 @@ class InsEkfNavigator(PositionFixFusion, Navigator):
             camera_boresight_sigma_rad=(0.0 if params.camera_boresight is None
                                         else params.camera_boresight.sigma_deg * DEG_TO_RAD),
             camera_time_offset_sigma_s=0.0 if params.camera_time_offset is None else params.camera_time_offset.sigma_s,
+            camera_intrinsics_sigma=(0.0, 0.0, 0.0) if params.camera_intrinsics is None else params.camera_intrinsics.sigmas(),
         )
         self._mag_model: OnboardMagneticModel | None = None
         self._airspeed: float | None = None
@@ -129,6 +130,8 @@ class InsEkfNavigator(PositionFixFusion, Navigator):
         """The camera whose boresight the states are (check_aids: the ismn aid's), for scoring."""
         self.time_offset_camera: str | None = None
         """The camera whose time offset the state is (check_aids: the ismn aid's), for scoring."""
+        self.intrinsics_camera: str | None = None
+        """The camera whose intrinsics error the states are (check_aids: the ismn aid's), for scoring."""
         self.air = AirRelativeAiding(params, aircraft, ctx.vehicle_id)
         """Rotor-drag and airspeed aiding (air_aiding.py)."""
         self.flow = None if params.optical_flow is None else FlowVelocityAiding(params.optical_flow)
@@ -202,6 +205,8 @@ class InsEkfNavigator(PositionFixFusion, Navigator):
             d[self.ekf.i_cam] = self.params.camera_boresight.sigma_deg * DEG_TO_RAD
         if self.ekf.i_td is not None:
             d[self.ekf.i_td] = self.params.camera_time_offset.sigma_s
+        if self.ekf.i_ci is not None:
+            d[self.ekf.i_ci] = self.params.camera_intrinsics.sigmas()
         return np.diag(d**2)
 
     def predict(self, imu: ImuSample) -> None:
@@ -295,10 +300,13 @@ class InsEkfNavigator(PositionFixFusion, Navigator):
             cov_camera_boresight_rad2=None if ekf.i_cam is None else P[ekf.i_cam, ekf.i_cam].copy(),
             camera_time_offset_s=None if ekf.i_td is None else float(ekf.td_s),
             var_camera_time_offset_s2=None if ekf.i_td is None else float(P[ekf.i_td, ekf.i_td]),
+            camera_intrinsics_error=None if ekf.i_ci is None else ekf.intrinsics_error.copy(),
+            cov_camera_intrinsics_error=None if ekf.i_ci is None else P[ekf.i_ci, ekf.i_ci].copy(),
         )
         for a in (est.pos_ned_m, est.vel_ned_mps, est.q_nb_wxyz, est.rpy_rad, est.omega_b_rps,
                   est.cov_pos_ned_m2, est.cov_vel_ned_m2s2, est.cov_att_rad2, est.wind_ne_mps, est.cov_wind_ne_m2s2,
-                  est.camera_boresight_b_rad, est.cov_camera_boresight_rad2):
+                  est.camera_boresight_b_rad, est.cov_camera_boresight_rad2, est.camera_intrinsics_error,
+                  est.cov_camera_intrinsics_error):
             if a is not None:
                 a.flags.writeable = False
         self._estimate = est
@@ -326,15 +334,13 @@ class InsEkfNavigator(PositionFixFusion, Navigator):
         matcher to learn them from (exactly one aid whose fixes carry the image-only pose), or
         when fixes that come late would be replayed over the spoofing monitor's own rewinds."""
         if self.ekf.i_td is not None:
-            from testbench.navigation.ismn_aid import IsmnAid
-
-            matchers = [a for a in aids if isinstance(a, IsmnAid)]
-            if len(matchers) != 1 or self.ekf.i_cam is not None:
-                raise InputError(
-                    f"{where}.params.camera_time_offset: the time offset is one scene-matching camera's, learnt from its "
-                    f"fixes: the vehicle needs exactly one ismn aid (has {len(matchers)}), and no camera_boresight "
-                    "states beside it (the image pose's attitude rows do not model the offset)")
-            self.time_offset_camera = matchers[0].params.camera
+            self.time_offset_camera = self._one_matcher_camera(
+                aids, f"{where}.params.camera_time_offset: the time offset",
+                "the image pose's attitude rows do not model the offset")
+        if self.ekf.i_ci is not None:
+            self.intrinsics_camera = self._one_matcher_camera(
+                aids, f"{where}.params.camera_intrinsics: the intrinsics error",
+                "the image pose's rows do not model the intrinsics")
         late = [a for a in aids if getattr(getattr(a, "params", None), "latency_s", 0.0) > 0.0]
         if late and self._gnss_guard is not None and self.params.delayed_fixes == "replay":
             raise InputError(
@@ -350,6 +356,18 @@ class InsEkfNavigator(PositionFixFusion, Navigator):
                 f"image-only pose: the vehicle needs exactly one ismn aid with pipeline.pose_from_image: true "
                 f"(has {len(offering)})")
         self.boresight_camera = offering[0].params.camera
+
+    def _one_matcher_camera(self, aids: list, what: str, why_no_boresight: str) -> str:
+        """The camera of the vehicle's only ismn aid, for camera states learnt from its fixes;
+        InputError naming `what` when there is not exactly one, or beside the boresight states."""
+        from testbench.navigation.ismn_aid import IsmnAid
+
+        matchers = [a for a in aids if isinstance(a, IsmnAid)]
+        if len(matchers) != 1 or self.ekf.i_cam is not None:
+            raise InputError(
+                f"{what} is one scene-matching camera's, learnt from its fixes: the vehicle needs exactly one ismn aid "
+                f"(has {len(matchers)}), and no camera_boresight states beside it ({why_no_boresight})")
+        return matchers[0].params.camera
 
     # ------------------------------------------------------------------ extras
     def covariance(self) -> np.ndarray:

@@ -240,6 +240,30 @@ class CameraTimeOffsetParams(ParamsModel):
     calibration (an unsynchronised USB or network camera: tens of milliseconds)."""
 
 
+class CameraIntrinsicsParams(ParamsModel):
+    """`navigation.params.camera_intrinsics`: the scene-matching camera's intrinsics error (its
+    principal point, the true one minus the calibrated one, px; its focal length, relative) as
+    three filter states, random constants (ErrorStateEKF camera_intrinsics_sigma)."""
+
+    principal_point_sigma_px: float = pydantic.Field(1.0, ge=0.0, le=20.0)
+    """The principal point's prior 1-sigma per axis (px): what a lens's principal point is
+    known to after a laboratory calibration (0.5-2 px for a wide-angle lens; the principal
+    point is the intrinsic a calibration pins worst)."""
+    focal_sigma_rel: float = pydantic.Field(0.002, ge=0.0, le=0.05)
+    """The focal length's prior 1-sigma, relative (0.1-0.3 % after a laboratory calibration;
+    the lens's focus and temperature move it too)."""
+
+    @pydantic.model_validator(mode="after")
+    def _some(self) -> "CameraIntrinsicsParams":
+        if self.principal_point_sigma_px == 0.0 and self.focal_sigma_rel == 0.0:
+            raise ValueError("give principal_point_sigma_px or focal_sigma_rel > 0 (or leave camera_intrinsics out)")
+        return self
+
+    def sigmas(self) -> tuple[float, float, float]:
+        """(u px, v px, focal relative) prior 1-sigmas, the states' order."""
+        return (self.principal_point_sigma_px, self.principal_point_sigma_px, self.focal_sigma_rel)
+
+
 class InsEkfParams(ParamsModel):
     """`navigation.params` of an ins_ekf vehicle (InsEkfNavigator.Params)."""
 
@@ -378,6 +402,12 @@ class InsEkfParams(ParamsModel):
     taken as their exposure times). The ismn aid then asks the pipeline for the fix of the pose
     at stamp - offset (its estimate), and the navigator fuses the fix as a position of that time.
     Needs exactly one ismn aid and no camera_boresight states."""
+    camera_intrinsics: CameraIntrinsicsParams | None = None
+    """The scene-matching camera's intrinsics error (principal point, focal length) as three
+    filter states (None: the calibrated intrinsics are taken as exact). The ismn pipeline then
+    solves each frame with the intrinsics corrected by the estimate, and the navigator fuses
+    each fix with its sensitivity to the error left. Needs exactly one ismn aid and no
+    camera_boresight states."""
     delayed_fixes: Literal["replay", "carry", "as_current"] = "replay"
     """How a position fix that reaches the filter after its time is fused (an aid's onboard
     processing time, IsmnAid latency_s; delayed.py): replay (exact: back to the state at the

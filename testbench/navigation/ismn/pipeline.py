@@ -127,9 +127,9 @@ class IsmnParams(ParamsModel):
     (its correspondences are exact whichever warp made the ortho view); the row-wise warp
     straightens what the tiles see, which matters where the rows' turn moves the frame's ends
     by several pixels (a multirotor yawing fast: 1 rad/s over 30 ms is 8 px at a 1080-row
-    frame's ends). In the paper's turns (1.8 px), ten runs: the turns' fixes 0.731 m against
-    0.788 m without it (0.703 m with a global shutter), the navigation no better, the latency
-    p95 1.8 times (one run pinned to a core: 144 ms against 57 ms; docs/measurements.md, "A
+    frame's ends). In the paper's turns (1.8 px), ten runs: the turns' fixes 0.723 m against
+    0.836 m without it (0.703 m with a global shutter), the navigation no better, the latency
+    p95 about twice (one run pinned to a core: 144 ms against 57 ms; docs/measurements.md, "A
     rolling shutter")."""
     max_jump_factor: float = 1.5  # reject fixes farther from the estimate than this x window margin
     thumb_px: int = 320  # width of the frame thumbnail kept in the diagnostics
@@ -235,6 +235,21 @@ class IsmnPipeline:
         cov[:3, :3] += floor_ned_m2
         cov[3:, 3:] += math.radians(self.p.attitude_floor_deg) ** 2 * np.eye(3)
         return pos, R_nb, cov
+
+    def _solve_K(self, estimate: NavEstimate) -> np.ndarray:
+        """(3, 3) the intrinsics the pose is solved with: the calibrated K, corrected by the
+        navigator's estimate of its error (NavEstimate.camera_intrinsics_error: principal point
+        and focal length) when it carries one. The ortho view keeps the calibrated K: its
+        correspondences are image pixels whichever K drew the view."""
+        K = self.camera.K
+        err = estimate.camera_intrinsics_error
+        if err is not None:
+            K = K.copy()
+            K[0, 0] *= 1.0 + float(err[2])
+            K[1, 1] *= 1.0 + float(err[2])
+            K[0, 2] += float(err[0])
+            K[1, 2] += float(err[1])
+        return K
 
     def _row_motion(self, estimate: NavEstimate, R_nb: np.ndarray, mount: CameraMount) -> RowMotion | None:
         """The camera's motion over a rolling shutter's readout (IsmnParams.readout_s), from the
@@ -369,7 +384,7 @@ class IsmnPipeline:
         # attitude would otherwise turn its attitude error into a position error of the fix.
         att_cov = (np.asarray(estimate.cov_att_rad2, float) + math.radians(p.att_prior_floor_deg) ** 2 * np.eye(3)
                    if p.use_attitude_prior else None)
-        sol = solve_camera_pose(X, uv, self.camera.K, centre, R_nc, sigma_px * g, att_cov,
+        sol = solve_camera_pose(X, uv, self._solve_K(estimate), centre, R_nc, sigma_px * g, att_cov,
                                 sigma_img_px=p.sigma_img_px, method=p.pose_method,
                                 point_poses=None if motion is None else motion.point_poses(uv))
         t4 = time.perf_counter()
@@ -406,5 +421,6 @@ class IsmnPipeline:
                           att_sensitivity_m_per_rad=sol.att_sensitivity_m_per_rad if coupled else None,
                           cov_given_att_ned_m2=sol.cov_centre_given_att_m2 + floor if coupled else None,
                           heading_rad=heading, heading_sigma_rad=heading_sigma,
-                          image_pos_ned_m=image_pose[0], image_R_nb=image_pose[1], image_pose_cov=image_pose[2])
+                          image_pos_ned_m=image_pose[0], image_R_nb=image_pose[1], image_pose_cov=image_pose[2],
+                          intrinsics_sensitivity=sol.intrinsics_sensitivity)
         return fix, IsmnDiagnostics(t_s, dict(lat), **{**keep, "peak_quality": quality})

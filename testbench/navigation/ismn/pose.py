@@ -67,6 +67,14 @@ class PoseSolution:
     position-attitude cross terms included (a tilt and a shift of the camera move the points
     near the image centre alike): what a filter fuses when it takes the image's pose as one
     measurement instead of the MAP centre (ismn pose_from_image)."""
+    intrinsics_sensitivity: np.ndarray | None = None
+    """(3, 3) d centre / d (du, dv, e): how the centre moves (NED m) with an error of the
+    intrinsics in K (the true camera has its principal point at (cx + du, cy + dv) px and its
+    focal lengths (1 + e) times K's), which moves each observed pixel by
+    d uv_i = (du, dv) + e (uv_i - (cx, cy)): A^-1 sum_i J_i^T W_i d uv_i per column, of the
+    solve's own normal equations (the prior's included). Over flat ground the principal point's
+    columns are a translation of about height / focal per px, so no single image tells a
+    principal point error from a shift of the camera; the focal length's is mostly the height."""
 
 
 def _exp(rotvec):
@@ -128,6 +136,15 @@ def _linearise(K, R_nc, c, X, uv_obs, sigma_ground_m, sigma_img_px, poses: Point
     Jg = Jp @ R_cn[..., :2]  # d uv / d (north, east) of the map point
     S = sigma_ground_m**2 * (Jg @ Jg.transpose(0, 2, 1)) + sigma_img_px**2 * np.eye(2)
     return r, J, _inv_sym2(S)
+
+
+def _intrinsics_sensitivity(cov: np.ndarray, J: np.ndarray, W: np.ndarray, uv_px: np.ndarray, K: np.ndarray) -> np.ndarray:
+    """(3, 3) PoseSolution.intrinsics_sensitivity from the solution's covariance cov (6, 6) and
+    the inliers' Jacobians J (N, 2, 6), weights W (N, 2, 2) and pixels uv_px (N, 2)."""
+    JtW = J.transpose(0, 2, 1) @ W  # (N, 6, 2)
+    centred = uv_px - np.array([K[0, 2], K[1, 2]])
+    G = np.c_[JtW.sum(axis=0), np.einsum("nij,nj->i", JtW, centred)]  # (6, 3): du, dv, e
+    return (cov @ G)[:3]
 
 
 def _take(poses: PointPoses | None, sel) -> PointPoses | None:
@@ -238,7 +255,8 @@ def solve_camera_pose(
     img = _image_only_pose(A_img, b_img, c, R, np.asarray(R_nc0, float), cov, P_prior_inv is not None)
     rms = float(np.sqrt(np.mean(np.sum(r**2, axis=1)))) if len(r) else float("nan")
     return PoseSolution(c, R, 0.5 * (cov[:3, :3] + cov[:3, :3].T), cov_att, inl, rms,
-                        M, 0.5 * (cov_img + cov_img.T), *img)
+                        M, 0.5 * (cov_img + cov_img.T), *img,
+                        intrinsics_sensitivity=_intrinsics_sensitivity(cov, J, W, uv[inl], K))
 
 
 def image_heading(att_img_ned_rad: np.ndarray, cov_att_img_rad2: np.ndarray, R_nb_seed: np.ndarray) -> tuple[float, float]:
