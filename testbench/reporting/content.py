@@ -6,7 +6,7 @@ import logging
 from pathlib import Path
 from typing import Any
 
-from testbench.reporting import figures_boresight as fb
+from testbench.reporting import figures_camera_states as fcs
 from testbench.reporting import figures_events as fe
 from testbench.reporting import figures_gnss as fg
 from testbench.reporting import figures_nav as fn
@@ -29,6 +29,9 @@ KEY_METRICS = (
     "nav.spoofed.gnss_captured_s",
     "nav.nees.position.mean", "nav.nees.position.frac_in_95", "nav.wind_error_mps.mean", "nav.wind_error_mps.p95",
     "nav.camera_boresight.final_error_deg", "nav.camera_boresight.final_sigma_deg",
+    "nav.camera_time_offset.final_error_ms", "nav.camera_time_offset.final_sigma_ms",
+    "nav.camera_intrinsics.final_principal_point_error_px", "nav.camera_intrinsics.final_principal_point_sigma_px",
+    "nav.camera_intrinsics.final_focal_error_ppm", "nav.camera_intrinsics.final_focal_sigma_ppm",
     "nav.gnss_sky.satellites_visible_mean", "nav.gnss_sky.satellites_visible_min", "nav.gnss_sky.fix_share",
     "nav.gnss_sky.hdop.p95", "nav.gnss_sky.hdop_open_sky_median",
     "control.altitude_error_m.rms", "control.cross_track_error_m.rms", "control.airspeed_error_mps.rms",
@@ -204,7 +207,8 @@ def build_report(run_dir: str | Path, result: MetricsResult | None = None) -> Re
     vt = _vehicle_table(result)
     sections.append(Section("Summary", "summary", [t for t in (Table("Key metrics", ["metric", "value"], summary_rows), vt) if t]))
     nav_figs = _figs(fn.trajectory_figure(record), fn.error_time_figures(record), fn.cdf_figure(record),
-                     fw.wind_figures(record), fb.boresight_figures(record), fg.gnss_sky_figures(record))
+                     fw.wind_figures(record), fcs.boresight_figures(record), fcs.time_offset_figures(record),
+                     fcs.intrinsics_figures(record), fg.gnss_sky_figures(record))
     sections.append(Section("Navigation", "navigation", figures=nav_figs))
     control_rows = _metric_rows(flat, [k for k in flat if k.startswith("control.") and not k.endswith(".n")])
     ctrl_fig = fn.control_figure(record)

@@ -219,3 +219,37 @@ def test_boresight_figure_where_a_navigator_estimates_its_cameras_boresight(tmp_
         assert ("nav.camera_boresight.final_error_deg" in html) == with_b
         counts[with_b] = len(decoded_images(html))
     assert counts[True] == counts[False] + 1
+
+
+def test_time_offset_and_intrinsics_figures_where_a_navigator_estimates_them(tmp_path):
+    """A record with the time offset and intrinsics columns and run.json's camera truth gets
+    one figure of each (and their final errors in the key metrics); one without has neither."""
+    import pandas as pd
+
+    counts = {}
+    for with_states in (True, False):
+        d = make_synthetic_run(tmp_path / str(with_states), np.random.default_rng(1), n_vehicles=1, duration_s=10.0,
+                               rate_hz=5.0, with_events=False, with_images=False)
+        if with_states:
+            info = json.loads((d / "run.json").read_text())
+            vid = info["vehicles"][0]["id"]
+            tel = pd.read_parquet(d / "telemetry.parquet")
+            t = tel["t_s"].to_numpy()
+            learnt = t >= 2.0  # from 2 s, near the truth
+            tel["nav_camera_time_offset_s"] = np.where(learnt, 0.031, 0.0)
+            tel["nav_sigma_camera_time_offset_s"] = np.where(learnt, 0.004, 0.03)
+            for k, value in (("pp_u_px", 0.9), ("pp_v_px", -0.45), ("focal_rel", 0.0012)):
+                tel[f"nav_camera_{k}"] = np.where(learnt, value, 0.0)
+                tel[f"nav_sigma_camera_{k}"] = np.where(learnt, 0.1 if "pp" in k else 2e-4, 1.0 if "pp" in k else 2e-3)
+            tel.to_parquet(d / "telemetry.parquet")
+            info["camera_time_offset_s"] = {vid: {"down": 0.03}}
+            info["camera_time_offset_estimated"] = {vid: "down"}
+            info["camera_intrinsics_error"] = {vid: {"down": {"focal_error_rel": 0.001, "principal_point_error_px": [1.0, -0.5]}}}
+            info["camera_intrinsics_estimated"] = {vid: "down"}
+            (d / "run.json").write_text(json.dumps(info))
+        html = unescape(write_html_report(d).read_text())
+        for text in ("Camera time offset vs time", "Camera intrinsics vs time", "nav.camera_time_offset.final_error_ms",
+                     "nav.camera_intrinsics.final_principal_point_error_px"):
+            assert (text in html) == with_states, text
+        counts[with_states] = len(decoded_images(html))
+    assert counts[True] == counts[False] + 2
