@@ -390,21 +390,17 @@ def compute_nav(record: RunRecord) -> NavMetrics | None:
         s = chi_square_stats(wind_nees(tel, wind_err), 2)
         if s is not None:
             nees["wind"] = s
+    # The camera states' estimates against the camera's truth (diagonal sigmas).
     boresight = boresight_errors_rad(record)
-    if boresight is not None:
-        s = chi_square_stats(_diag_nees(*boresight), 3)
-        if s is not None:
-            nees["camera_boresight"] = s
     time_offset = time_offset_errors_s(record)
-    if time_offset is not None:
-        s = chi_square_stats(_diag_nees(time_offset[0][:, None], time_offset[1][:, None]), 1)
-        if s is not None:
-            nees["camera_time_offset"] = s
     intrinsics = intrinsics_errors(record)
-    if intrinsics is not None:
-        s = chi_square_stats(_diag_nees(*intrinsics), 3)
-        if s is not None:
-            nees["camera_intrinsics"] = s
+    for name, errors, dof in (("camera_boresight", boresight, 3), ("camera_time_offset", time_offset, 1),
+                              ("camera_intrinsics", intrinsics, 3)):
+        if errors is not None:
+            err, sig = (np.asarray(x, float).reshape(len(x), -1) for x in errors)
+            s = chi_square_stats(_diag_nees(err, sig), dof)
+            if s is not None:
+                nees[name] = s
 
     return NavMetrics(
         position_error_m=error_stats(np.linalg.norm(e3, axis=1)),
