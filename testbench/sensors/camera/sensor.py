@@ -24,7 +24,6 @@ The world object it reads is the engine's tick view (`CameraWorld` protocol belo
 from __future__ import annotations
 
 import logging
-import math
 from dataclasses import dataclass
 from typing import Any, Protocol, Sequence
 
