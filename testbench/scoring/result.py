@@ -110,12 +110,10 @@ class CameraTimeOffsetStats(_Section):
 @dataclass(frozen=True)
 class CameraIntrinsicsStats(_Section):
     """A navigator's estimate of its scene-matching camera's intrinsics error against the true
-    one (run.json camera_intrinsics_error of the camera in camera_intrinsics_estimated, 0 where
-    it has none): principal_point_error_px, ErrorStats of |estimate - truth| of the principal
-    point (px, both axes) over the GNSS-denied rows (all rows without any);
-    final_principal_point_error_px / final_principal_point_sigma_px (the norm of the two
-    sigmas) and final_focal_error_ppm / final_focal_sigma_ppm (parts per million of the focal
-    length) at each vehicle's last row (the largest over vehicles)."""
+    one (run.json camera_intrinsics_error of the camera in camera_intrinsics_estimated):
+    principal_point_error_px, ErrorStats of |estimate - truth| of the principal point (px)
+    over the GNSS-denied rows (all rows without any); at each vehicle's last row (the largest
+    over vehicles) the principal point's error and sigma (norms, px) and the focal length's (ppm)."""
 
     principal_point_error_px: ErrorStats | None = None
     final_principal_point_error_px: float | None = None

@@ -121,14 +121,10 @@ class ErrorStateEKF(Reacquisition):
     the attitude the image had then. Straight legs flown both ways tell it from the fixes' shared
     error, which does not turn with the track.
     camera_intrinsics_sigma: 1-sigmas (3,) of the scene-matching camera's intrinsics error
-    [principal point u, v (px: the true one minus the calibrated one), focal length (relative:
-    true = calibrated (1 + e))] (all 0: no such states): three random constants after the
-    others (self.i_ci), learnt from the position fixes through their sensitivity to them
-    (PositionFix.intrinsics_sensitivity). Over flat ground a principal point error moves a fix
-    as a shift of the camera would, about height / focal per px (1.4 m per px at 800 m with a
-    1920 px, 120 deg camera), fixed in the camera's axes, so it turns with the track, which
-    tells it from the fixes' shared error and the INS's drift; a focal length error moves the
-    fix's height (0.8 m per 0.1 % at 800 m), which the barometer and GNSS see.
+    [principal point u, v (px, true minus calibrated), focal length (relative)] (all 0: no such
+    states): three random constants after the others (self.i_ci), learnt from the fixes through
+    their sensitivity to them (PositionFix.intrinsics_sensitivity). A principal point error
+    shifts a fix by about height / focal per px in the camera's axes, so it turns with the track.
     gyro_scale_sigma, scale_corr_angle_rad: the gyros' scale-factor and cross-axis error (1 sigma,
     rad per rad turned) is a constant error in each rate the IMU reads, which the error state
     does not carry: it enters P as attitude noise per angle turned, s^2 Theta |dtheta| per axis,
@@ -212,31 +208,17 @@ class ErrorStateEKF(Reacquisition):
             self._qc = np.concatenate([self._qc, [0.0]])  # driven by distance, in flush()
         if self.i_flow is not None:
             self._qc = np.concatenate([self._qc, [0.0, 0.0]])  # a Gauss-Markov step in flush()
-        if self.i_cam is not None:
-            self._qc = np.concatenate([self._qc, [0.0, 0.0, 0.0]])  # a constant: the mount does not move
-        if self.i_td is not None:
-            self._qc = np.concatenate([self._qc, [0.0]])  # a constant: the clocks' offset, not their drift
-        if self.i_ci is not None:
-            self._qc = np.concatenate([self._qc, [0.0, 0.0, 0.0]])  # constants: the lens's calibration
+        # The camera's boresight, time offset and intrinsics are constants (a mount that does not
+        # move, the clocks' offset and not their drift, the lens's calibration): no process noise.
+        self._qc = np.concatenate([self._qc, np.zeros(self.n - n_flow)])
         self.ins: StrapdownINS | None = None
         self.b_g = np.zeros(3)
         self.b_a = np.zeros(3)
         self.b_baro = 0.0
-        self.b_gnss = np.zeros(3)
-        self.b_fix = np.zeros(3)
-        self.b_app = np.zeros(3)
-        self.b_mag_rad = 0.0
-        self.drag_scale = 0.0
-        self.b_flow_rps = np.zeros(2)
-        self.b_cam_rad = np.zeros(3)
-        self.td_s = 0.0
-        self.intrinsics_error = np.zeros(3)
+        self._zero_estimated_errors()
         self.flow_view_rate_rps = 0.0  # |translational flow| of the last flow sample (rad/s), held until the next
-        self.wind_ne_mps = np.zeros(2)
         self.P = np.zeros((self.n, self.n))
         self.omega_ib_b_rps = np.zeros(3)  # last bias-corrected gyro rate
-        self._acc_T = 0.0
-        self._acc_fn = [0.0, 0.0, 0.0]
         self._acc_turn_rad = 0.0
         self._acc_yaw_rad = 0.0  # |heading change| over the pending interval (fix_error_turn_rad)
 
@@ -248,22 +230,22 @@ class ErrorStateEKF(Reacquisition):
         self.b_g = np.zeros(3) if b_g is None else np.array(b_g, float)
         self.b_a = np.zeros(3) if b_a is None else np.array(b_a, float)
         self.b_baro = float(b_baro)
-        self.b_gnss = np.zeros(3)
-        self.b_fix = np.zeros(3)
-        self.b_app = np.zeros(3)
-        self.b_mag_rad = 0.0
-        self.drag_scale = 0.0
-        self.b_flow_rps = np.zeros(2)
-        self.b_cam_rad = np.zeros(3)
-        self.td_s = 0.0
-        self.intrinsics_error = np.zeros(3)
-        self.wind_ne_mps = np.zeros(2)
+        self._zero_estimated_errors()
         self.P = np.array(P0, float)
-        self._acc_T = 0.0
-        self._acc_fn = [0.0, 0.0, 0.0]
         self._acc_turn_rad = 0.0
         self._acc_yaw_rad = 0.0
         self._check("initial covariance")
+
+    def _zero_estimated_errors(self) -> None:
+        """The nominal values of the GNSS and fix errors, the appearance and magnetic biases,
+        the drag scale, the flow's error, the camera's boresight, time offset and intrinsics and
+        the wind at 0, and the pending propagation interval empty."""
+        self.b_gnss, self.b_fix, self.b_app = np.zeros(3), np.zeros(3), np.zeros(3)
+        self.b_mag_rad = self.drag_scale = self.td_s = 0.0
+        self.b_flow_rps, self.wind_ne_mps = np.zeros(2), np.zeros(2)
+        self.b_cam_rad, self.intrinsics_error = np.zeros(3), np.zeros(3)
+        self._acc_T = 0.0
+        self._acc_fn = [0.0, 0.0, 0.0]
 
     @property
     def t_s(self) -> float:

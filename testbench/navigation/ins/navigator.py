@@ -358,8 +358,7 @@ class InsEkfNavigator(PositionFixFusion, Navigator):
         self.boresight_camera = offering[0].params.camera
 
     def _one_matcher_camera(self, aids: list, what: str, why_no_boresight: str) -> str:
-        """The camera of the vehicle's only ismn aid, for camera states learnt from its fixes;
-        InputError naming `what` when there is not exactly one, or beside the boresight states."""
+        """The camera of the only ismn aid, whose fixes teach camera states (InputError naming `what` if not one)."""
         from testbench.navigation.ismn_aid import IsmnAid
 
         matchers = [a for a in aids if isinstance(a, IsmnAid)]

@@ -35,8 +35,8 @@ from testbench.core.errors import InputError
 from testbench.core.interfaces import BuildContext, Sensor
 from testbench.core.messages import TruthState
 from testbench.core.registry import ParamsModel, register
-from testbench.core.rotations import euler_to_dcm, quat_to_dcm, rotvec_to_quat
-from testbench.core.units import STANDARD_GRAVITY_MPS2
+from testbench.core.rotations import quat_to_dcm
+from testbench.sensors.camera.departures import exposure_pose, misaligned, miscalibrated
 from testbench.sensors.camera.render import render
 from testbench.sensors.camera.rolling_shutter import render_rolling
 from testbench.sensors.camera.types import RenderedFrame, RenderOptions, VehicleAppearance, VehicleTruth
@@ -201,7 +201,7 @@ class CameraSensor(Sensor):
         self.mount = CameraMount(mount_rotation(p.mount_roll_deg, p.mount_pitch_deg, p.mount_yaw_deg), np.asarray(p.lever_arm_b_m, float))
         self.boresight_error_deg = np.asarray(p.mount_error_deg, float)
         """(3,) the true mounting's turn from the calibrated one (roll, pitch, yaw about body x, y, z; deg)."""
-        self.true_mount = _misaligned(self.mount, self.boresight_error_deg)
+        self.true_mount = misaligned(self.mount, self.boresight_error_deg)
         self.time_offset_s = float(p.time_offset_s)
         """The frame's stamp minus its true exposure time (s; time_offset_s plus the run's draw)."""
         # The intrinsics as calibrated (.camera, what navigation is given) and the true ones that
@@ -209,7 +209,7 @@ class CameraSensor(Sensor):
         self.intrinsics_error = (float(p.focal_error_rel), *(float(x) for x in p.principal_point_error_px))
         """(focal length relative error, principal point error u, v (px)): the true intrinsics'
         departure from the calibrated ones."""
-        self.true_camera = _miscalibrated(self.camera, self.intrinsics_error)
+        self.true_camera = miscalibrated(self.camera, self.intrinsics_error)
         self._options = RenderOptions(
             near_m=p.near_m, far_m=p.far_m, noise_mean=p.noise_mean, noise_std=p.noise_std, gain=p.gain,
             vignetting=p.vignetting, haze_visibility_m=p.haze_visibility_m,
@@ -238,7 +238,7 @@ class CameraSensor(Sensor):
         p = self.params
         if p.mount_error_sigma_deg > 0.0:
             self.boresight_error_deg = np.asarray(p.mount_error_deg, float) + p.mount_error_sigma_deg * rng.standard_normal(3)
-            self.true_mount = _misaligned(self.mount, self.boresight_error_deg)
+            self.true_mount = misaligned(self.mount, self.boresight_error_deg)
             log.info("camera %s: boresight error %.4f / %.4f / %.4f deg (roll / pitch / yaw, body axes)",
                      self.name, *self.boresight_error_deg)
         if p.time_offset_sigma_s > 0.0:
@@ -251,7 +251,7 @@ class CameraSensor(Sensor):
             if p.principal_point_error_sigma_px > 0.0:
                 du, dv = (float(x) for x in (du, dv) + p.principal_point_error_sigma_px * rng.standard_normal(2))
             self.intrinsics_error = (focal, du, dv)
-            self.true_camera = _miscalibrated(self.camera, self.intrinsics_error)
+            self.true_camera = miscalibrated(self.camera, self.intrinsics_error)
             self._border_rays_c = _border_rays(self.true_camera)
             log.info("camera %s: focal length error %.5f, principal point error %.3f / %.3f px", self.name, focal, du, dv)
 
@@ -382,41 +382,6 @@ class CameraSensor(Sensor):
         extent = max(n1 - n0, e1 - e0)
         gsd = max(gsd_near, extent / self.params.max_window_px)
         return (float(n0), float(n1), float(e0), float(e1)), float(gsd)
-
-
-def _miscalibrated(camera: PinholeCamera, error: tuple[float, float, float]) -> PinholeCamera:
-    """The true intrinsics of a calibrated camera: focal lengths scaled by 1 + error[0], the
-    principal point moved by (error[1], error[2]) px; the same size and lens distortion."""
-    focal, du, dv = error
-    if not (focal or du or dv):
-        return camera
-    return PinholeCamera(camera.width_px, camera.height_px, camera.fx * (1.0 + focal), camera.fy * (1.0 + focal),
-                         camera.cx + du, camera.cy + dv, tuple(camera.dist))
-
-
-def _misaligned(mount: CameraMount, error_rpy_deg: np.ndarray) -> CameraMount:
-    """The mounting turned by a boresight error: R_bc_true = R_err R_bc, R_err the Z-Y-X rotation
-    by error_rpy_deg (3,) about the body axes (deg); the lever arm is unchanged. Body axes rather
-    than the mounting angles because a nadir camera (pitch -90 deg) is gimbal-locked in those."""
-    if not np.any(error_rpy_deg):
-        return mount
-    return CameraMount(euler_to_dcm(np.radians(error_rpy_deg)) @ mount.R_bc, mount.lever_arm_b_m)
-
-
-def exposure_pose(truth: TruthState, time_offset_s: float) -> tuple[np.ndarray, np.ndarray]:
-    """The vehicle's true position (3,) NED m at the origin and attitude R_nb (3, 3) body -> NED
-    at time_offset_s before the tick's truth (a frame stamped at the tick but exposed earlier;
-    negative: later). Extrapolated from the tick's state: the position to second order (its
-    velocity, and the acceleration its specific force and standard gravity give), the attitude
-    by the body rate held over the offset; over 0.1 s in a 30 deg bank turn that errs by under
-    a millimetre and a microradian (the jerk's and the rate's change). Offset 0: the tick's pose."""
-    R_nb = quat_to_dcm(truth.q_nb_wxyz)
-    if time_offset_s == 0.0:
-        return truth.pos_ned_m, R_nb
-    dt = -float(time_offset_s)
-    acc_n = R_nb @ np.asarray(truth.f_b_mps2, float) + np.array([0.0, 0.0, STANDARD_GRAVITY_MPS2])
-    pos = np.asarray(truth.pos_ned_m, float) + np.asarray(truth.vel_ned_mps, float) * dt + 0.5 * acc_n * dt * dt
-    return pos, R_nb @ quat_to_dcm(rotvec_to_quat(np.asarray(truth.omega_eb_b_rps, float) * dt))
 
 
 def _ground_height(world: Any, centre: np.ndarray) -> float:
