@@ -115,6 +115,31 @@ class DemError(pydantic.BaseModel):
     seed: int | None = Field(default=None, ge=0)
 
 
+class MapError(pydantic.BaseModel):
+    """The carried reference map's georeference error (world/map_error.py): ground that truly
+    lies at g appears in the map at g + d(g), d = shift_ne_m (north, east, m: a datum or
+    control error the whole map shares) plus a smooth random field of sigma_m per axis whose
+    correlation falls to exp(-1/2) at correlation_m (an orthophoto's local misplacement from
+    its DEM and tie points). Applied to what the vehicles carry (world.reference_map, else
+    world.imagery), never to what cameras render. seed: the field's own seed (the same map in
+    every run); None draws it from the run's seed."""
+
+    model_config = _CFG
+    shift_ne_m: tuple[float, float] = (0.0, 0.0)
+    sigma_m: float = Field(default=0.0, ge=0.0, le=100.0)
+    correlation_m: float = Field(default=1000.0, gt=0.0, le=100_000.0)
+    seed: int | None = Field(default=None, ge=0)
+
+    @model_validator(mode="after")
+    def _small_gradient(self):
+        if self.sigma_m > 0.02 * self.correlation_m:
+            raise ValueError(f"sigma_m {self.sigma_m} m over correlation_m {self.correlation_m} m folds the map "
+                             "(expected sigma_m at most 2 % of correlation_m)")
+        if not all(math.isfinite(x) for x in self.shift_ne_m):
+            raise ValueError(f"shift_ne_m {self.shift_ne_m} is not finite (expected [north, east], m)")
+        return self
+
+
 class CloudCoverage(pydantic.BaseModel):
     """Another coverage of the cloud layer for a while: `coverage` (0-1) over [start_s, end_s)."""
 
@@ -202,6 +227,7 @@ class ObstacleBox(pydantic.BaseModel):
 
 class World(pydantic.BaseModel):
     """The world: origin, what cameras render (imagery), what vehicles carry (reference_map),
+    the carried map's georeference error (reference_map_error: MapError; None: the map is placed exactly),
     terrain (elevation), the terrain model vehicles carry (reference_elevation, default the terrain; its error
     reference_elevation_error: DemError, None: none), obstacles (boxes: ObstacleBox), the air mass (wind; None: calm
     air), the crust's magnetic anomaly (None: the magnetometers sense the WMM the vehicles carry, exactly), a cloud layer
@@ -215,6 +241,7 @@ class World(pydantic.BaseModel):
     imagery: str | None = None
     imagery_credit: str | None = None
     reference_map: str | None = None
+    reference_map_error: MapError | None = None
     elevation: str | None = None
     reference_elevation: str | None = None
     reference_elevation_error: DemError | None = None

@@ -85,19 +85,33 @@ class RunWorld:
         return self._imagery
 
     def reference_map(self):
-        """MapSource a vehicle carries onboard (defaults to the imagery: same-raster)."""
+        """MapSource a vehicle carries onboard (defaults to the imagery: same-raster), off its
+        georeference (world/map_error.DisplacedMap) when world.reference_map_error says so."""
         if self._reference is None:
             spec = self.spec.reference_map or self.spec.imagery
             if spec:
                 from testbench.world import open_world_imagery
 
                 self._reference = open_world_imagery(spec, self.origin, self.cache_dir)
+                err = self.spec.reference_map_error
+                if err is not None and (err.sigma_m > 0 or err.shift_ne_m != (0.0, 0.0)):
+                    from testbench.world.map_error import DisplacedMap
+
+                    self._reference = DisplacedMap.over(self._reference, err.shift_ne_m, err.sigma_m, err.correlation_m,
+                                                        self._world_rng("reference_map_error", err.seed))
         return self._reference
+
+    def map_displacement_ne_m(self, north_m, east_m) -> tuple[np.ndarray, np.ndarray] | None:
+        """The carried map's displacement (d_north_m, d_east_m) at local points (arrays broadcast
+        together): TRUTH, for scoring only. None without a map error."""
+        disp = getattr(self.reference_map(), "displacement", None)
+        return None if disp is None else disp.at(north_m, east_m)
 
     def _world_rng(self, key: str, seed: int | None) -> np.random.Generator:
         """The generator of what world.<key> draws: its own seed's stream (the same in every
         run), else the run's (each run of a batch draws anew)."""
-        stream = {"magnetic_anomaly": "magnetic_anomaly", "reference_elevation_error": "dem_error", "clouds": "clouds"}[key]
+        stream = {"magnetic_anomaly": "magnetic_anomaly", "reference_elevation_error": "dem_error", "clouds": "clouds",
+                  "reference_map_error": "map_error"}[key]
         if seed is not None:
             return RngStreams(seed).generator("world", stream)
         if self._streams is None:
