@@ -75,6 +75,7 @@ class IsmnAttempt:
             truth_cloud_fraction=float(self.cloud_fraction),
             truth_shadow_fraction=float(self.shadow_fraction),
             **_exposure_columns(self.exposure_pos_ned_m),
+            **_footprint_columns(getattr(d, "window", None)),
             delivered_t_s=float(self.deliver_t_s if self.deliver_t_s is not None else self.t_s) if fix is not None else _NAN,
         )
         return [("ismn", row)]
@@ -167,6 +168,15 @@ class IsmnAid(NavigationAid):
                                                                float(getattr(measurement, "shadow_fraction", 0.0)),
                                                                deliver_t_s=t_s + latency if latency > 0 else None,
                                                                exposure_pos_ned_m=getattr(measurement, "exposure_pos_ned_m", None))
+
+
+def _footprint_columns(window) -> dict[str, float]:
+    """footprint_{north,east}_{min,max}_m of a row: the footprint the INS predicted (the search
+    window's, DESIGN.md eq. 3-5; NaN when the attempt had no window). Onboard information; the
+    engine scores the map's error over it (Engine._fill_truth)."""
+    fp = (_NAN,) * 4 if window is None else tuple(float(x) for x in window.footprint_ne_m)
+    return dict(footprint_north_min_m=fp[0], footprint_north_max_m=fp[1], footprint_east_min_m=fp[2],
+                footprint_east_max_m=fp[3])
 
 
 def _exposure_columns(pos_ned_m) -> dict[str, float]:

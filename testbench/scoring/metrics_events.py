@@ -15,6 +15,7 @@ from testbench.scoring.record_io import RunRecord, column, has_columns
 from testbench.scoring.result import (
     FormationMetrics,
     IsmnClouds,
+    IsmnMapError,
     IsmnMetrics,
     IsmnPhase,
     RelnavMetrics,
@@ -39,14 +40,35 @@ def ismn_fix_errors(ismn: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
 
     NaN on rows without a fix.
     """
-    if "truth_exposure_north_m" in ismn.columns:
-        ismn = ismn.assign(truth_north_m=column(ismn, "truth_exposure_north_m"),
-                           truth_east_m=column(ismn, "truth_exposure_east_m"))
+    ismn = _at_exposure(ismn)
     eh = np.hypot(*fix_errors_ne_m(ismn).T)
     agl = column(ismn, "truth_height_agl_m")
     with np.errstate(divide="ignore", invalid="ignore"):
         pct = np.where(agl > MIN_AGL_FOR_PCT_M, 100.0 * eh / agl, np.nan)
     return eh, pct
+
+
+def _at_exposure(ismn: pd.DataFrame) -> pd.DataFrame:
+    """The table with its truth position where each frame was taken from (truth_exposure_*),
+    where the record has those columns."""
+    if "truth_exposure_north_m" not in ismn.columns:
+        return ismn
+    return ismn.assign(truth_north_m=column(ismn, "truth_exposure_north_m"),
+                       truth_east_m=column(ismn, "truth_exposure_east_m"))
+
+
+def _ismn_map_error(ismn: pd.DataFrame, fix: np.ndarray) -> IsmnMapError | None:
+    """IsmnMapError from the rows' truth_map_error_{north,east}_m (None where the record has
+    no such columns: the carried map was placed exactly)."""
+    if not has_columns(ismn, "truth_map_error_north_m", "truth_map_error_east_m"):
+        return None
+    d = np.stack([column(ismn, "truth_map_error_north_m"), column(ismn, "truth_map_error_east_m")], axis=1)
+    e = fix_errors_ne_m(_at_exposure(ismn))
+    sel = fix & np.all(np.isfinite(d), axis=1) & np.all(np.isfinite(e), axis=1)
+    if not np.any(sel):
+        return IsmnMapError(fixes=0)
+    return IsmnMapError(fixes=int(sel.sum()), map_error_m=error_stats(np.hypot(*d[sel].T)),
+                        matching_error_m=error_stats(np.hypot(*(e - d)[sel].T)))
 
 
 def _ismn_phase(eh: np.ndarray, pct: np.ndarray, mask: np.ndarray) -> IsmnPhase | None:
@@ -91,6 +113,7 @@ def compute_ismn(record: RunRecord) -> IsmnMetrics | None:
         turning=_ismn_phase(eh, pct, fix & turning),
         longest_gap_s=_longest_gap_per_vehicle(ismn, attempted, accepted),
         clouds=_ismn_clouds(ismn, attempted, fix, accepted, eh),
+        map_error=_ismn_map_error(ismn, fix),
     )
 
 

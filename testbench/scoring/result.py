@@ -13,34 +13,10 @@ import math
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
+from testbench.scoring.result_ismn import IsmnClouds, IsmnMapError, IsmnMetrics, IsmnPhase  # noqa: F401 -- re-exported
+from testbench.scoring.sections import Section as _Section
+from testbench.scoring.sections import _convert, section_dict
 from testbench.scoring.stats import ChiSquareStats, ErrorStats
-
-
-def _convert(value: Any) -> Any:
-    if hasattr(value, "to_dict"):
-        return value.to_dict()
-    if isinstance(value, Mapping):
-        return {str(k): _convert(v) for k, v in value.items() if v is not None}
-    return value
-
-
-def section_dict(obj: Any) -> dict[str, Any]:
-    """Nested dict of a result dataclass: None fields dropped, children converted."""
-    out: dict[str, Any] = {}
-    for f in dataclasses.fields(obj):
-        v = getattr(obj, f.name)
-        if v is None:
-            continue
-        v = _convert(v)
-        if isinstance(v, dict) and not v:
-            continue
-        out[f.name] = v
-    return out
-
-
-class _Section:
-    def to_dict(self) -> dict[str, Any]:
-        return section_dict(self)
 
 
 @dataclass(frozen=True)
@@ -214,70 +190,6 @@ class NavMetrics(_Section):
     camera_boresight: CameraBoresightStats | None = None
     camera_time_offset: CameraTimeOffsetStats | None = None
     camera_intrinsics: CameraIntrinsicsStats | None = None
-
-
-@dataclass(frozen=True)
-class IsmnPhase(_Section):
-    """Scene-matching fix error (fix - truth) over the fixes of one phase."""
-
-    horizontal_error_m: ErrorStats | None = None
-    horizontal_error_pct_agl: ErrorStats | None = None
-    count: int = 0
-
-
-@dataclass(frozen=True)
-class IsmnClouds(_Section):
-    """Scene matching under the world's clouds (the frames' truth_cloud_fraction).
-
-    attempts / fixes / accepted: over the frames that clouds covered half of or more;
-    horizontal_error_m: error of the fixes made from those frames; overcast_attempts /
-    overcast_accepted: over the frames clouds covered 95 % of or more, where nothing of the
-    ground is left to match (a fix the filter takes from one is a false fix);
-    shadowed_fixes / shadowed_horizontal_error_m: the fixes from frames a fifth or more of
-    whose ground in view shows in a cloud's shadow (truth_shadow_fraction), and their error;
-    sunlit_fixes / sunlit_horizontal_error_m: those from frames under 5 % in shadow (only where
-    the clouds cast shadows)."""
-
-    attempts: int
-    fixes: int
-    accepted: int
-    overcast_attempts: int
-    overcast_accepted: int
-    horizontal_error_m: ErrorStats | None = None
-    shadowed_fixes: int | None = None
-    shadowed_horizontal_error_m: ErrorStats | None = None
-    sunlit_fixes: int | None = None
-    sunlit_horizontal_error_m: ErrorStats | None = None
-
-
-@dataclass(frozen=True)
-class IsmnMetrics(_Section):
-    """Inertial-aided scene matching.
-
-    fix_rate = fixes / attempts; accept_rate = fixes accepted by the filter / fixes that
-    reached it (one still in processing at the run's end did not); latency_ms: per attempt
-    (the pipeline's own compute time on this machine); delivery_delay_s: the mean time from a
-    frame's exposure to its fix reaching the filter (the aid's modelled onboard processing time,
-    IsmnAid latency_s; 0: at once); busy_frames: frames the processor skipped because it was
-    still on an earlier one (not attempts); all / smooth / turning: error of the produced fixes;
-    longest_gap_s: the longest time between two accepted fixes, or from the last one to the
-    last attempt (s; from the first accepted fix on); clouds: the frames under cloud (only
-    where the world has clouds).
-    """
-
-    attempts: int
-    fixes: int
-    accepted: int
-    fix_rate: float | None = None
-    accept_rate: float | None = None
-    latency_ms: ErrorStats | None = None
-    delivery_delay_s: float | None = None
-    busy_frames: int = 0
-    all: IsmnPhase | None = None
-    smooth: IsmnPhase | None = None
-    turning: IsmnPhase | None = None
-    longest_gap_s: float | None = None
-    clouds: IsmnClouds | None = None
 
 
 @dataclass(frozen=True)

@@ -24,6 +24,8 @@ from dataclasses import dataclass
 from functools import reduce
 from typing import Any, Callable, Mapping
 
+import numpy as np
+
 from testbench.core.errors import InputError
 from testbench.core.messages import GnssFix, ImuSample
 from testbench.sim.recorder import Recorder
@@ -311,10 +313,28 @@ class Engine:
             row["truth_north_m"], row["truth_east_m"], row["truth_down_m"] = (float(x) for x in rel)
             return
         row["truth_north_m"], row["truth_east_m"], row["truth_down_m"] = (float(x) for x in me.pos_ned_m)
+        if "footprint_north_min_m" in row:
+            self._fill_map_error(row)
         if "truth_roll_rad" in row:
             row["truth_roll_rad"] = float(me.rpy_rad[0])
         if "truth_height_agl_m" in row:
             row["truth_height_agl_m"] = float(me.height_agl_m)
+
+    def _fill_map_error(self, row: dict[str, Any]) -> None:
+        """truth_map_error_{north,east}_m of a scene-matching row when the carried map is off
+        its georeference (world.reference_map_error): the map's displacement averaged over the
+        footprint the row's fix was matched in (a 5 x 5 grid over its predicted bounds), what the
+        fix inherits from the map; NaN without a footprint. No columns without a map error."""
+        n0, n1, e0, e1 = (row[f"footprint_{k}_m"] for k in ("north_min", "north_max", "east_min", "east_max"))
+        if self.world.spec.reference_map_error is None:
+            return
+        if not all(math.isfinite(x) for x in (n0, n1, e0, e1)):
+            row["truth_map_error_north_m"] = row["truth_map_error_east_m"] = math.nan
+            return
+        s = np.linspace(0.0, 1.0, 5)
+        d = self.world.map_displacement_ne_m(n0 + (n1 - n0) * s[:, None], e0 + (e1 - e0) * s[None, :])
+        d_n, d_e = (0.0, 0.0) if d is None else (float(np.mean(d[0])), float(np.mean(d[1])))
+        row["truth_map_error_north_m"], row["truth_map_error_east_m"] = d_n, d_e
 
     @staticmethod
     def _render_requests(v: VehicleRuntime, t_s: float) -> dict[str, list] | None:
