@@ -103,6 +103,17 @@ def test_check_refuses_replayed_late_fixes_beside_the_spoofing_monitor():
     assert ok.returncode == 0, ok.stderr
 
 
+def test_check_refuses_map_error_states_without_a_scene_matcher():
+    """Only scene-matching fixes see the map's error: the states without an ismn aid are refused
+    by name; with one they build."""
+    key = "vehicles.uav0.navigation.params.map_error={sigma_m: 2.5}"
+    proc = _run(str(SCENARIOS / "ins_only_800m.yaml"), "--check", "--set", key)
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert "map_error" in proc.stderr and "ismn" in proc.stderr and "Traceback" not in proc.stderr
+    ok = _run(str(SCENARIOS / "paper_ismn_800m.yaml"), "--check", "--set", key)
+    assert ok.returncode == 0, ok.stderr
+
+
 @pytest.mark.parametrize("key, value", [("camera_time_offset", "{sigma_s: 0.03}"),
                                         ("camera_intrinsics", "{principal_point_sigma_px: 1.0}")])
 def test_check_refuses_camera_states_without_one_scene_matcher(key, value):

@@ -64,10 +64,10 @@ class ErrorStateEKF(Reacquisition):
     """Error-state EKF of one vehicle. Shapes: P (n, n), n = self.n: N_STATES (25) with
     wind_states, else N_NO_WIND (23), plus 3 with the appearance states, 1 with the magnetic
     heading bias, 2 with the optical flow's slow error, 3 with a camera's boresight error, 1 with
-    its time offset and 3 with its intrinsics error; error vector layout in error_model (the
-    appearance states, self.i_app, then the magnetic bias, self.i_mag, then the flow's error,
-    self.i_flow, then the boresight, self.i_cam, the time offset, self.i_td, and the
-    intrinsics, self.i_ci, come last).
+    its time offset, 3 with its intrinsics error and 2 with the map's error; error vector layout
+    in error_model (the appearance states, self.i_app, then the magnetic bias, self.i_mag, the
+    flow's error, self.i_flow, the boresight, self.i_cam, the time offset, self.i_td, the
+    intrinsics, self.i_ci, and the map's error, self.i_map, come last).
 
     noise: IMU noise model; gate_probability: chi-square gate (e.g. 0.999; 1.0 disables);
     cov_interval_s: covariance propagation interval (0: every IMU sample);
@@ -77,10 +77,7 @@ class ErrorStateEKF(Reacquisition):
     fix_error_sigma_m, fix_error_tau_s: the same for the error successive position fixes share
     (sigma: one figure for every axis, or (3,) per NED axis); fix_error_turn_rad: the shared fix
     error also decorrelates as the view turns, by exp(-|d psi| / fix_error_turn_rad) for a heading
-    change d psi (inf: time alone). Scene matching's shared error is the disagreement between the
-    scene and the map as one viewing geometry meets it: a turn rotates the frame over the ground
-    and brings other tiles and other geometry (paper_ismn_800m: after each 180 deg turn the
-    position erred by 0.16-0.19 m against 0.27 m claimed while the straight legs were consistent).
+    change d psi (inf: time alone).
     drag_scale_sigma, drag_scale_tau_s: steady-state sigma and correlation time of the rotor-drag
     scale's error (error_model, dsd; 0 sigma: the drag model is taken as exact).
     wind_states: carry the horizontal wind (two more states, for airspeed aiding);
@@ -88,43 +85,33 @@ class ErrorStateEKF(Reacquisition):
     appearance_sigma_m: steady-state sigma (one figure or (3,) per NED axis) of a second error
     that successive position fixes share, the appearance error (0: no such states). Three
     Gauss-Markov states after the others (self.i_app), with fix_error_tau_s and
-    fix_error_turn_rad, seen by each fix with its own gain (measurements.position_ned): scene
-    matching under changed shadows errs together over a region, more as fewer tiles agree, and
-    the b_fix states, which every fix sees alike, cannot hold an error that a good fix shares
-    less than a poor one.
+    fix_error_turn_rad, seen by each fix with its own gain (measurements.position_ned).
     mag_bias_sigma_rad, mag_bias_correlation_m: steady-state sigma and correlation distance of
     the magnetic heading's bias (0 sigma: no such state). One Gauss-Markov state after the
-    others (self.i_mag) that decorrelates with the distance flown, exp(-d / correlation):
-    the field the magnetometer senses differs from the onboard model by the crust's anomaly,
-    which turns the magnetic heading by a few mrad, the same for every sample at one place.
-    Taken as white, each sample's 1 deg sigma averaged down to a fraction of a mrad over a
-    minute, and the filter claimed a heading that the bias missed by several times that
-    (paper_ismn_800m under a 300 nT anomaly: attitude NEES 3.9 per dof).
+    others (self.i_mag) that decorrelates with the distance flown, exp(-d / correlation).
     flow_bias_sigma_rps, flow_bias_tau_s, flow_bias_correlation_rad: steady-state sigma (rad/s)
     of the optical flow's slowly varying error b_f, two Gauss-Markov states in the flow camera's
     x and y (0 sigma: none; measurements.optical_flow reads h + b_f), and how it decorrelates:
     over time (tau) and over the ground the view passes, exp(-T / tau - |flow| T / correlation),
     |flow| the translation's flow rate the last sample showed (flow_view_rate_rps, rad/s, set by
-    the flow aiding): a flow sensor's reading of sub-pixel shifts errs by an amount that follows
-    the ground in its view, the same while the view holds the same ground (consecutive frames
-    share 99 % of it at 5 m/s), which taken as white noise the filter averages down.
+    the flow aiding).
     camera_boresight_sigma_rad: 1-sigma per body axis of the scene-matching camera's boresight
     error b_cam (its true mounting R_bc_true = Exp(b_cam) R_bc, body axes, rad; 0: no such
     states): three random constants after the others (self.i_cam), learnt from the image's
     pose against the INS attitude (measurements.image_pose), then through the MAP fixes'
-    attitude coupling (measurements.position_ned). A camera mount known to 0.1 deg
-    moves the fixes of a camera 800 m up by 1.4 m, the same way for a whole leg.
+    attitude coupling (measurements.position_ned).
     camera_time_offset_sigma_s: 1-sigma of the scene-matching camera's time offset td (its
     frames' stamp minus their true exposure, s; 0: no such state): one random constant after the
     others (self.i_td), learnt from the position fixes (measurements.position_ned): a fix is of
-    the position td before its stamp, v td behind (at 25 m/s, 0.5 m per 20 ms), and seen through
-    the attitude the image had then. Straight legs flown both ways tell it from the fixes' shared
-    error, which does not turn with the track.
+    the position td before its stamp, v td behind, and seen through the attitude the image had then.
     camera_intrinsics_sigma: 1-sigmas (3,) of the scene-matching camera's intrinsics error
     [principal point u, v (px, true minus calibrated), focal length (relative)] (all 0: no such
     states): three random constants after the others (self.i_ci), learnt from the fixes through
-    their sensitivity to them (PositionFix.intrinsics_sensitivity). A principal point error
-    shifts a fix by about height / focal per px in the camera's axes, so it turns with the track.
+    their sensitivity to them (PositionFix.intrinsics_sensitivity).
+    map_error_sigma_m, map_error_correlation_m: 1-sigma per axis and correlation distance of the
+    reference map's georeference error b_map (north, east, m; 0 sigma: none): two Gauss-Markov
+    states after the others (self.i_map) that every scene-matching fix sees whole and that
+    decorrelate with the distance flown, exp(-d / correlation).
     gyro_scale_sigma, scale_corr_angle_rad: the gyros' scale-factor and cross-axis error (1 sigma,
     rad per rad turned) is a constant error in each rate the IMU reads, which the error state
     does not carry: it enters P as attitude noise per angle turned, s^2 Theta |dtheta| per axis,
@@ -133,10 +120,8 @@ class ErrorStateEKF(Reacquisition):
     bias_model: "random_walk" (the IMU bias errors are driven by the Gauss-Markov process's
     noise, 2 s^2 / tau, plus the rate random walk, and never decay; the nominal biases are
     held) or "gauss_markov" (errors and nominal biases decay with tau: right only when the whole
-    bias is the zero-mean in-run process). A real bias is a turn-on constant plus the in-run
-    process: a consumer MEMS gyro's turn-on bias (0.5 deg/s) is 180 times its instability, and
-    decaying its estimate towards zero left a tilt error growing at 0.07 deg/s that GNSS could
-    not hold (tests/navigation/ins). vehicle_id is only used in error messages.
+    bias is the zero-mean in-run process; error_model says why). vehicle_id is only used in
+    error messages. Why each optional state is there: error_model's module docstring.
     """
 
     def __init__(self, noise: ImuNoiseSI, *, gate_probability: float = 0.999,
@@ -150,7 +135,8 @@ class ErrorStateEKF(Reacquisition):
                  mag_bias_correlation_m: float = math.inf, flow_bias_sigma_rps: float = 0.0,
                  flow_bias_tau_s: float = math.inf, flow_bias_correlation_rad: float = math.inf,
                  camera_boresight_sigma_rad: float = 0.0, camera_time_offset_sigma_s: float = 0.0,
-                 camera_intrinsics_sigma=(0.0, 0.0, 0.0), vehicle_id: str | None = None):
+                 camera_intrinsics_sigma=(0.0, 0.0, 0.0), map_error_sigma_m: float = 0.0,
+                 map_error_correlation_m: float = math.inf, vehicle_id: str | None = None):
         if bias_model not in ("random_walk", "gauss_markov"):
             raise ValueError(f"bias_model {bias_model!r}: expected 'random_walk' or 'gauss_markov'")
         self.noise = noise
@@ -181,7 +167,12 @@ class ErrorStateEKF(Reacquisition):
         self.i_ci: slice | None = slice(n_td, n_td + 3) if np.any(np.asarray(camera_intrinsics_sigma) > 0.0) else None
         """The scene-matching camera's intrinsics error's three states (principal point u, v px;
         focal length, relative), or None."""
-        self.n = n_td + (3 if self.i_ci is not None else 0)
+        n_ci = n_td + (3 if self.i_ci is not None else 0)
+        self._map_var_m2 = float(map_error_sigma_m) ** 2
+        self.map_error_correlation_m = float(map_error_correlation_m)
+        self.i_map: slice | None = slice(n_ci, n_ci + 2) if self._map_var_m2 > 0.0 else None
+        """The reference map's georeference error's two states (north, east, m), or None."""
+        self.n = n_ci + (2 if self.i_map is not None else 0)
         """Number of error states (the length of dx, the size of P)."""
         # Correlation times of the IMU bias ERRORS in F (inf: random walk) and of the nominal biases.
         gm = bias_model == "gauss_markov"
@@ -243,7 +234,7 @@ class ErrorStateEKF(Reacquisition):
         self.b_gnss, self.b_fix, self.b_app = np.zeros(3), np.zeros(3), np.zeros(3)
         self.b_mag_rad = self.drag_scale = self.td_s = 0.0
         self.b_flow_rps, self.wind_ne_mps = np.zeros(2), np.zeros(2)
-        self.b_cam_rad, self.intrinsics_error = np.zeros(3), np.zeros(3)
+        self.b_cam_rad, self.intrinsics_error, self.b_map_ne_m = np.zeros(3), np.zeros(3), np.zeros(2)
         self._acc_T = 0.0
         self._acc_fn = [0.0, 0.0, 0.0]
 
@@ -328,12 +319,17 @@ class ErrorStateEKF(Reacquisition):
             if ia is not None:
                 self._gauss_markov_step(ia, a, np.diag(self._app_var_m2))
                 self.b_app *= a
+        vn, ve, _ = ins.vel
         if self.i_mag is not None:
             # The magnetic bias decorrelates over the ground flown.
-            vn, ve, _ = ins.vel
             a = math.exp(-math.hypot(vn, ve) * T / self.mag_bias_correlation_m)
             self._gauss_markov_step(self.i_mag, a, self._mag_var_rad2)
             self.b_mag_rad *= a
+        if self.i_map is not None:
+            # So does the map's error under the footprint (not with time, nor in turns).
+            a = math.exp(-math.hypot(vn, ve) * T / self.map_error_correlation_m)
+            self._gauss_markov_step(self.i_map, a, self._map_var_m2 * np.eye(2))
+            self.b_map_ne_m = self.b_map_ne_m * a
         if self.i_flow is not None:
             # The flow's error decorrelates with time and with the ground its view passes.
             k = T / self.flow_bias_tau_s + self.flow_view_rate_rps * T / self.flow_bias_correlation_rad
@@ -433,6 +429,8 @@ class ErrorStateEKF(Reacquisition):
             self.td_s += float(dx[self.i_td])
         if self.i_ci is not None:
             self.intrinsics_error = self.intrinsics_error + dx[self.i_ci]
+        if self.i_map is not None:
+            self.b_map_ne_m = self.b_map_ne_m + dx[self.i_map]
 
     # ------------------------------------------------------------------ guard
     def _check(self, where: str) -> None:

@@ -34,7 +34,33 @@ Error convention (truth = nominal (+) error):
   i_cam): error of the scene-matching camera's boresight b_cam (body axes, rad: R_bc_true =
   Exp(b_cam) R_bc), a constant; dtd (1, after dbc: ErrorStateEKF.i_td): error of its time offset
   (s); dci (3, last: ErrorStateEKF.i_ci): error of its intrinsics error (principal point u, v
-  px; focal length, relative), constants. Likewise carried only when asked.
+  px; focal length, relative), constants; dmp (2, last: ErrorStateEKF.i_map): error of the
+  reference map's georeference error b_map (north, east, m), Gauss-Markov over the distance
+  flown. Likewise carried only when asked.
+Why each is there (what leaving it out did):
+- b_fix decorrelates in turns too: scene matching's shared error is the disagreement between
+  the scene and the map as one viewing geometry meets it, and a turn brings other tiles and
+  geometry (paper_ismn_800m: after each 180 deg turn the position erred by 0.16-0.19 m against
+  0.27 m claimed while the straight legs were consistent).
+- b_app: scene matching under changed shadows errs together over a region, more as fewer tiles
+  agree, and b_fix, which every fix sees alike, cannot hold an error that a good fix shares
+  less than a poor one.
+- b_mag: the crust's anomaly turns the magnetic heading by a few mrad, the same for every sample
+  at one place; taken as white, each sample's 1 deg sigma averaged down to a fraction of a mrad
+  and the filter claimed a heading the bias missed by several times that (300 nT: NEES 3.9/dof).
+- b_flow: a flow sensor's reading of sub-pixel shifts errs with the ground in its view, the
+  same while the view holds it (consecutive frames share 99 % of it at 5 m/s).
+- b_cam, td, the intrinsics: a mount known to 0.1 deg moves the fixes of a camera 800 m up by
+  1.4 m, the same way for a whole leg; a 20 ms time offset puts them 0.5 m behind at 25 m/s;
+  a principal point error shifts them by height / focal per px in the camera's axes (so it
+  turns with the track); straight legs flown both ways tell each from b_fix.
+- b_map: every fix from a misplaced map errs by the map's displacement under its footprint;
+  no fix tells it from the position (GNSS, while it lasts, does), so without it the filter
+  claims the fixes' precision as accuracy.
+- The IMU biases are not decayed towards zero by default (bias_model "random_walk"): a real
+  bias is a turn-on constant plus the in-run process, a consumer MEMS gyro's turn-on bias
+  (0.5 deg/s) is 180 times its instability, and decaying its estimate left a tilt error growing
+  at 0.07 deg/s that GNSS could not hold (tests/navigation/ins).
 The nominal biases are subtracted from the raw IMU data: omega = omega_meas - b_g.
 
 Continuous error dynamics (phi-angle model, Titterton & Weston ch. 12 / Groves ch. 14, in

@@ -48,7 +48,8 @@ class PositionFixFusion:
         if offset is not None:
             pos, lag = offset.carried(pos, lag)
         y, H, R = meas.position_ned(ekf, pos, white, self.ctx.origin, M,
-                                    appearance_gain=self.appearance_gain(measurement.quality), vel_lag_s=lag)
+                                    appearance_gain=self.appearance_gain(measurement.quality), vel_lag_s=lag,
+                                    from_map=measurement.source == "ismn")
         if offset is not None:
             H[:, ekf.i_td] = offset.position_column(M)
         if ekf.i_ci is not None and measurement.intrinsics_sensitivity is not None:
@@ -117,7 +118,7 @@ class PositionFixFusion:
         cov[3:, :3] *= scale
         cov[:3, :3] = self._white_fix_cov(cov[:3, :3], given_att)
         y, H, R = meas.image_pose(self.ekf, fix.image_pos_ned_m, fix.image_R_nb, cov, self.ctx.origin,
-                                  appearance_gain=self.appearance_gain(fix.quality))
+                                  appearance_gain=self.appearance_gain(fix.quality), from_map=fix.source == "ismn")
 
         def reset_position(kind, t_s, y, H, R, elapsed_s):
             return self.ekf.reset_position(kind, t_s, y[:3], H[:3], R[:3, :3], elapsed_s)

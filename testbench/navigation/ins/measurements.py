@@ -76,7 +76,7 @@ def nominal_pos_ned(ekf, origin: GeodeticOrigin) -> np.ndarray:
 
 
 def position_ned(ekf, pos_ned_m, cov_ned_m2, origin: GeodeticOrigin, att_sensitivity_m_per_rad=None,
-                 appearance_gain: float = 0.0, vel_lag_s=None):
+                 appearance_gain: float = 0.0, vel_lag_s=None, from_map: bool = False):
     """Position fix in NED at the scenario origin (scene matching): the true position plus the
     error successive fixes share (the b_fix state, origin NED) plus white noise of covariance
     cov_ned_m2; H = [R_on 0 ... I].
@@ -96,7 +96,10 @@ def position_ned(ekf, pos_ned_m, cov_ned_m2, origin: GeodeticOrigin, att_sensiti
 
     vel_lag_s tau (s), or a (3, 3) lag matrix L (s, origin NED): the fix was carried over its
     last tau seconds on the filter's estimated velocity (PositionFix.vel_lag_s), so it holds
-    tau (v_est - v_true) = -tau dv: H_v = -tau R_on (-L R_on)."""
+    tau (v_est - v_true) = -tau dv: H_v = -tau R_on (-L R_on).
+
+    from_map: the fix was matched against the reference map, so with the map error states
+    (ekf.i_map) it also holds the map's displacement b_map (north, east): H[:2, i_map] = I."""
     ins = ekf.ins
     y = np.asarray(pos_ned_m, float) - nominal_pos_ned(ekf, origin) - ekf.b_fix
     H = np.zeros((3, ekf.n))
@@ -105,6 +108,9 @@ def position_ned(ekf, pos_ned_m, cov_ned_m2, origin: GeodeticOrigin, att_sensiti
     if ekf.i_app is not None and appearance_gain:
         y = y - appearance_gain * ekf.b_app
         H[:, ekf.i_app] = appearance_gain * np.eye(3)
+    if ekf.i_map is not None and from_map:
+        y[:2] = y[:2] - ekf.b_map_ne_m
+        H[:2, ekf.i_map] = np.eye(2)
     if att_sensitivity_m_per_rad is not None:
         M = np.asarray(att_sensitivity_m_per_rad, float)
         H[:, IA] = -M
@@ -170,7 +176,8 @@ class TimeOffsetTerms:
         return float(heading_rad) + self.heading_rate_rps * self.td_s
 
 
-def image_pose(ekf, pos_ned_m, R_nb_img, cov_pose, origin: GeodeticOrigin, appearance_gain: float = 0.0):
+def image_pose(ekf, pos_ned_m, R_nb_img, cov_pose, origin: GeodeticOrigin, appearance_gain: float = 0.0,
+               from_map: bool = False):
     """A camera's pose the image alone gives (PositionFix.image_*), as one measurement of
     position and attitude: pos_ned_m (3,) NED m at the origin and R_nb_img (3, 3) body -> NED,
     both through the camera's calibrated mounting, with their joint covariance cov_pose (6, 6)
@@ -184,7 +191,7 @@ def image_pose(ekf, pos_ned_m, R_nb_img, cov_pose, origin: GeodeticOrigin, appea
     (the inverse right Jacobian of Log to first order: a boresight of a degree is 0.017 rad, whose
     half is not small against the 1e-4 rad the image resolves). Without the boresight states the
     attitude rows are those of an attitude measurement alone (H_phi = I + [a x] / 2)."""
-    y_p, H_p, _ = position_ned(ekf, pos_ned_m, np.eye(3), origin, appearance_gain=appearance_gain)
+    y_p, H_p, _ = position_ned(ekf, pos_ned_m, np.eye(3), origin, appearance_gain=appearance_gain, from_map=from_map)
     C = ekf.C_nb
     y_a = _log_rotation(np.asarray(R_nb_img, float) @ C.T)
     H_a = np.zeros((3, ekf.n))

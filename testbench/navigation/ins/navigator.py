@@ -31,12 +31,12 @@ from testbench.navigation.ins.air_aiding import AirRelativeAiding, wind_settings
 from testbench.navigation.ins.consistency import error_state
 from testbench.navigation.ins.delayed import DelayedFixes
 from testbench.navigation.ins.fix_fusion import PositionFixFusion
-from testbench.navigation.ins.ekf import ErrorStateEKF
+from testbench.navigation.ins.build import build_ekf, optional_state_sigmas
 from testbench.navigation.ins.error_model import IA, IBA, IBB, IBG, IDS, IFX, IGN, IP, IV, IW
 from testbench.navigation.ins.flow_aiding import FlowVelocityAiding
 from testbench.navigation.ins.gnss_guard import GnssSpoofGuard
 from testbench.navigation.ins.imu_noise import (
-    fit_to_flicker, imu_noise_from_datasheet, preset_datasheet, preset_names, preset_scale_error,
+    fit_to_flicker, imu_noise_from_datasheet, preset_datasheet, preset_names,
 )
 from testbench.navigation.ins.magnetic import OnboardMagneticModel
 from testbench.navigation.ins.reacquire import update_or_reset
@@ -87,33 +87,7 @@ class InsEkfNavigator(PositionFixFusion, Navigator):
         """(3,) m: steady-state sigma of the shared fix error per axis (north, east, down)."""
         self.drag_scale_sigma = 0.0 if params.drag_aiding is None else params.drag_aiding.scale_sigma
         """Steady-state sigma of the drag model's scale error (0 without drag aiding)."""
-        self.ekf = ErrorStateEKF(
-            self.noise, gate_probability=params.gate_probability,
-            cov_interval_s=params.cov_interval_s,
-            baro_bias_rw_m_sqrt_s=params.baro_bias_rw_m_sqrt_s,
-            gnss_error_sigma_m=params.gnss_error_sigma_m, gnss_error_tau_s=params.gnss_error_tau_s,
-            fix_error_sigma_m=self.fix_error_sigma_ned_m, fix_error_tau_s=params.fix_error_tau_s,
-            fix_error_turn_rad=math.radians(params.fix_error_turn_deg) if params.fix_error_turn_deg else math.inf,
-            bias_model=params.imu_bias_model, vehicle_id=ctx.vehicle_id,
-            gyro_scale_sigma=(preset_scale_error(params.imu_preset) if params.gyro_scale_error is None
-                              else params.gyro_scale_error),
-            scale_corr_angle_rad=math.radians(params.scale_error_angle_deg),
-            drag_scale_sigma=self.drag_scale_sigma,
-            drag_scale_tau_s=math.inf if params.drag_aiding is None else params.drag_aiding.scale_tau_s,
-            wind_states=wind_settings(params) is not None,
-            wind_rw_mps_sqrt_s=0.0 if wind_settings(params) is None else wind_settings(params).wind_rw_mps_sqrt_s,
-            appearance_sigma_m=params.fix_appearance_sigma_m,
-            mag_bias_sigma_rad=0.0 if params.mag_bias is None else params.mag_bias.sigma_deg * DEG_TO_RAD,
-            mag_bias_correlation_m=math.inf if params.mag_bias is None else params.mag_bias.correlation_m,
-            flow_bias_sigma_rps=0.0 if params.optical_flow is None else params.optical_flow.bias_sigma_rps,
-            flow_bias_tau_s=math.inf if params.optical_flow is None else params.optical_flow.bias_tau_s,
-            flow_bias_correlation_rad=(math.inf if params.optical_flow is None
-                                       else params.optical_flow.bias_correlation_rad),
-            camera_boresight_sigma_rad=(0.0 if params.camera_boresight is None
-                                        else params.camera_boresight.sigma_deg * DEG_TO_RAD),
-            camera_time_offset_sigma_s=0.0 if params.camera_time_offset is None else params.camera_time_offset.sigma_s,
-            camera_intrinsics_sigma=(0.0, 0.0, 0.0) if params.camera_intrinsics is None else params.camera_intrinsics.sigmas(),
-        )
+        self.ekf = build_ekf(params, self.noise, self.fix_error_sigma_ned_m, self.drag_scale_sigma, ctx.vehicle_id)
         self._mag_model: OnboardMagneticModel | None = None
         self._airspeed: float | None = None
         self._initialized = False
@@ -195,18 +169,8 @@ class InsEkfNavigator(PositionFixFusion, Navigator):
         d[IDS] = self.drag_scale_sigma
         if wind_settings(self.params) is not None:
             d[IW] = wind_settings(self.params).wind_sigma_mps
-        if self.ekf.i_app is not None:
-            d[self.ekf.i_app] = self.params.fix_appearance_sigma_m
-        if self.ekf.i_mag is not None:
-            d[self.ekf.i_mag] = self.params.mag_bias.sigma_deg * DEG_TO_RAD
-        if self.ekf.i_flow is not None:
-            d[self.ekf.i_flow] = self.params.optical_flow.bias_sigma_rps
-        if self.ekf.i_cam is not None:
-            d[self.ekf.i_cam] = self.params.camera_boresight.sigma_deg * DEG_TO_RAD
-        if self.ekf.i_td is not None:
-            d[self.ekf.i_td] = self.params.camera_time_offset.sigma_s
-        if self.ekf.i_ci is not None:
-            d[self.ekf.i_ci] = self.params.camera_intrinsics.sigmas()
+        for idx, sigma in optional_state_sigmas(self.ekf, self.params):
+            d[idx] = sigma
         return np.diag(d**2)
 
     def predict(self, imu: ImuSample) -> None:
@@ -341,6 +305,12 @@ class InsEkfNavigator(PositionFixFusion, Navigator):
             self.intrinsics_camera = self._one_matcher_camera(
                 aids, f"{where}.params.camera_intrinsics: the intrinsics error",
                 "the image pose's rows do not model the intrinsics")
+        if self.ekf.i_map is not None:
+            from testbench.navigation.ismn_aid import IsmnAid
+
+            if not any(isinstance(a, IsmnAid) for a in aids):
+                raise InputError(f"{where}.params.map_error: the map error states are seen only by scene-matching "
+                                 "fixes: the vehicle needs an ismn aid (has none); expected map_error left out")
         late = [a for a in aids if getattr(getattr(a, "params", None), "latency_s", 0.0) > 0.0]
         if late and self._gnss_guard is not None and self.params.delayed_fixes == "replay":
             raise InputError(

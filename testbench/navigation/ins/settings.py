@@ -240,6 +240,16 @@ class CameraTimeOffsetParams(ParamsModel):
     calibration (an unsynchronised USB or network camera: tens of milliseconds)."""
 
 
+class MapErrorParams(ParamsModel):
+    """`navigation.params.map_error`: the reference map's georeference error (north, east) as
+    two filter states that every scene-matching fix sees whole (ErrorStateEKF map_error_*)."""
+
+    sigma_m: float = pydantic.Field(gt=0.0, le=100.0)
+    """1-sigma per axis (m): the map's stated accuracy (NAIP: 6 m at 95 %, about 2.5 m per axis)."""
+    correlation_m: float = pydantic.Field(2000.0, gt=0.0)
+    """The distance flown over which the error decorrelates by exp(-1) (m)."""
+
+
 class CameraIntrinsicsParams(ParamsModel):
     """`navigation.params.camera_intrinsics`: the scene-matching camera's intrinsics error (its
     principal point, the true one minus the calibrated one, px; its focal length, relative) as
@@ -408,6 +418,9 @@ class InsEkfParams(ParamsModel):
     solves each frame with the intrinsics corrected by the estimate, and the navigator fuses
     each fix with its sensitivity to the error left. Needs exactly one ismn aid and no
     camera_boresight states."""
+    map_error: MapErrorParams | None = None
+    """The reference map's georeference error as filter states (None: the map is taken as placed
+    exactly). Needs a scene-matching aid (ismn)."""
     delayed_fixes: Literal["replay", "carry", "as_current"] = "replay"
     """How a position fix that reaches the filter after its time is fused (an aid's onboard
     processing time, IsmnAid latency_s; delayed.py): replay (exact: back to the state at the
