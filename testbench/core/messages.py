@@ -264,6 +264,10 @@ class NavEstimate:
         the calibrated one), focal length (relative: true = calibrated (1 + e))], and its
         covariance, when the navigator estimates it, else None. A scene matcher solves with the
         intrinsics corrected by it.
+    map_error_ne_m (2,), cov_map_error_ne_m2 (2, 2): the estimated georeference error of the
+        reference map under the scene matcher's footprint (north, east, m: where the map shows
+        the ground minus where it is) and its covariance, when the navigator estimates it, else
+        None.
     """
 
     t_s: float
@@ -284,6 +288,8 @@ class NavEstimate:
     var_camera_time_offset_s2: float | None = None
     camera_intrinsics_error: np.ndarray | None = None
     cov_camera_intrinsics_error: np.ndarray | None = None
+    map_error_ne_m: np.ndarray | None = None
+    cov_map_error_ne_m2: np.ndarray | None = None
 
 
 @dataclass(frozen=True, slots=True)

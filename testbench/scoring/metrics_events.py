@@ -21,7 +21,7 @@ from testbench.scoring.result import (
     RelnavMetrics,
     RelnavPair,
 )
-from testbench.scoring.stats import error_stats, rate
+from testbench.scoring.stats import chi_square_stats, error_stats, rate
 
 
 def fix_errors_ne_m(table: pd.DataFrame) -> np.ndarray:
@@ -57,9 +57,10 @@ def _at_exposure(ismn: pd.DataFrame) -> pd.DataFrame:
                        truth_east_m=column(ismn, "truth_exposure_east_m"))
 
 
-def _ismn_map_error(ismn: pd.DataFrame, fix: np.ndarray) -> IsmnMapError | None:
+def _ismn_map_error(ismn: pd.DataFrame, fix: np.ndarray, tel: pd.DataFrame) -> IsmnMapError | None:
     """IsmnMapError from the rows' truth_map_error_{north,east}_m (None where the record has
-    no such columns: the carried map was placed exactly)."""
+    no such columns: the carried map was placed exactly), the navigator's estimate from the
+    telemetry row (tel) of the same vehicle and time."""
     if not has_columns(ismn, "truth_map_error_north_m", "truth_map_error_east_m"):
         return None
     d = np.stack([column(ismn, "truth_map_error_north_m"), column(ismn, "truth_map_error_east_m")], axis=1)
@@ -67,8 +68,27 @@ def _ismn_map_error(ismn: pd.DataFrame, fix: np.ndarray) -> IsmnMapError | None:
     sel = fix & np.all(np.isfinite(d), axis=1) & np.all(np.isfinite(e), axis=1)
     if not np.any(sel):
         return IsmnMapError(fixes=0)
+    est_err, nees = _map_error_estimate(ismn[sel], d[sel], tel)
     return IsmnMapError(fixes=int(sel.sum()), map_error_m=error_stats(np.hypot(*d[sel].T)),
-                        matching_error_m=error_stats(np.hypot(*(e - d)[sel].T)))
+                        matching_error_m=error_stats(np.hypot(*(e - d)[sel].T)),
+                        estimate_error_m=est_err, estimate_nees=nees)
+
+
+def _map_error_estimate(rows: pd.DataFrame, truth_ne_m: np.ndarray, tel: pd.DataFrame):
+    """(ErrorStats of |estimate - truth|, its NEES's ChiSquareStats) of the navigator's map
+    error estimate (telemetry nav_map_error_*) at the times of `rows` against truth_ne_m (n, 2);
+    (None, None) when the telemetry holds no estimate."""
+    if not has_columns(tel, "nav_map_error_n_m"):
+        return None, None
+    cols = ["nav_map_error_n_m", "nav_map_error_e_m", "nav_sigma_map_error_n_m", "nav_sigma_map_error_e_m"]
+    keyed = tel.assign(_t=np.round(column(tel, "t_s"), 6))[["vehicle_id", "_t", *cols]]
+    at = rows[["vehicle_id"]].assign(_t=np.round(column(rows, "t_s"), 6)).merge(keyed, on=["vehicle_id", "_t"], how="left")
+    err = at[cols[:2]].to_numpy(float) - truth_ne_m
+    sig = at[cols[2:]].to_numpy(float)
+    ok = np.all(np.isfinite(err) & np.isfinite(sig) & (sig > 0), axis=1)
+    if not ok.any():
+        return None, None
+    return error_stats(np.hypot(*err[ok].T)), chi_square_stats(np.sum((err[ok] / sig[ok]) ** 2, axis=1), 2)
 
 
 def _ismn_phase(eh: np.ndarray, pct: np.ndarray, mask: np.ndarray) -> IsmnPhase | None:
@@ -113,7 +133,7 @@ def compute_ismn(record: RunRecord) -> IsmnMetrics | None:
         turning=_ismn_phase(eh, pct, fix & turning),
         longest_gap_s=_longest_gap_per_vehicle(ismn, attempted, accepted),
         clouds=_ismn_clouds(ismn, attempted, fix, accepted, eh),
-        map_error=_ismn_map_error(ismn, fix),
+        map_error=_ismn_map_error(ismn, fix, record.telemetry),
     )
 
 

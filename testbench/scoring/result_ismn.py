@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from testbench.scoring.sections import Section
-from testbench.scoring.stats import ErrorStats
+from testbench.scoring.stats import ChiSquareStats, ErrorStats
 
 
 @dataclass(frozen=True)
@@ -49,11 +49,15 @@ class IsmnMapError(Section):
 
     map_error_m: |displacement| over the fixes, what the map alone puts into them;
     matching_error_m: |fix error - displacement|, what the matching itself erred by (the
-    fix's error as it would be from a map placed exactly, to first order)."""
+    fix's error as it would be from a map placed exactly, to first order); where the navigator
+    estimates the map's error (navigation.params.map_error): estimate_error_m, |estimate -
+    displacement| at the fixes' times, and estimate_nees, its NEES (2 dof, diagonal sigmas)."""
 
     fixes: int
     map_error_m: ErrorStats | None = None
     matching_error_m: ErrorStats | None = None
+    estimate_error_m: ErrorStats | None = None
+    estimate_nees: ChiSquareStats | None = None
 
 
 @dataclass(frozen=True)

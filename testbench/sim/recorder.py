@@ -65,6 +65,11 @@ _INTRINSICS = ("pp_u_px", "pp_v_px", "focal_rel")
 TELEMETRY_INTRINSICS_COLUMNS = (tuple(f"nav_camera_{k}" for k in _INTRINSICS)
                                 + tuple(f"nav_sigma_camera_{k}" for k in _INTRINSICS))
 
+# With Recorder(map_error_columns=True): the navigator's estimate of its reference map's
+# georeference error (north, east, m) with its sigmas.
+TELEMETRY_MAP_ERROR_COLUMNS = ("nav_map_error_n_m", "nav_map_error_e_m", "nav_sigma_map_error_n_m",
+                               "nav_sigma_map_error_e_m")
+
 _NAN = float("nan")
 
 
@@ -74,18 +79,22 @@ class Recorder:
     boresight_columns: add TELEMETRY_BORESIGHT_COLUMNS (a navigator that estimates its camera's
     boresight); time_offset_columns: add TELEMETRY_TIME_OFFSET_COLUMNS (a navigator that
     estimates its camera's time offset); intrinsics_columns: add TELEMETRY_INTRINSICS_COLUMNS
-    (a navigator that estimates its camera's intrinsics error)."""
+    (a navigator that estimates its camera's intrinsics error); map_error_columns: add
+    TELEMETRY_MAP_ERROR_COLUMNS (a navigator that estimates its map's georeference error)."""
 
     def __init__(self, wind_columns: bool = False, boresight_columns: bool = False,
-                 time_offset_columns: bool = False, intrinsics_columns: bool = False) -> None:
+                 time_offset_columns: bool = False, intrinsics_columns: bool = False,
+                 map_error_columns: bool = False) -> None:
         self._wind_columns = bool(wind_columns)
         self._boresight_columns = bool(boresight_columns)
         self._time_offset_columns = bool(time_offset_columns)
         self._intrinsics_columns = bool(intrinsics_columns)
+        self._map_error_columns = bool(map_error_columns)
         self._float_columns = (TELEMETRY_FLOAT_COLUMNS + (TELEMETRY_WIND_COLUMNS if wind_columns else ())
                                + (TELEMETRY_BORESIGHT_COLUMNS if boresight_columns else ())
                                + (TELEMETRY_TIME_OFFSET_COLUMNS if time_offset_columns else ())
-                               + (TELEMETRY_INTRINSICS_COLUMNS if intrinsics_columns else ()))
+                               + (TELEMETRY_INTRINSICS_COLUMNS if intrinsics_columns else ())
+                               + (TELEMETRY_MAP_ERROR_COLUMNS if map_error_columns else ()))
         self._tel: dict[str, list] = {c: [] for c in self._float_columns}
         self._vehicle: list[str] = []
         self._leg: list[int] = []
@@ -157,6 +166,11 @@ class Recorder:
             for i, k in enumerate(_INTRINSICS):
                 c[f"nav_camera_{k}"].append(_NAN if err is None else float(err[i]))
                 c[f"nav_sigma_camera_{k}"].append(_NAN if cov is None else math.sqrt(max(float(cov[i, i]), 0.0)))
+        if self._map_error_columns:
+            err, cov = est.map_error_ne_m, est.cov_map_error_ne_m2
+            for i, k in enumerate(("n", "e")):
+                c[f"nav_map_error_{k}_m"].append(_NAN if err is None else float(err[i]))
+                c[f"nav_sigma_map_error_{k}_m"].append(_NAN if cov is None else math.sqrt(max(float(cov[i, i]), 0.0)))
         self._vehicle.append(vehicle_id)
         self._leg.append(int(s.leg_index))
         self._on_leg.append(bool(s.on_leg))

@@ -81,7 +81,9 @@ def build_engine(
     recorder = Recorder(wind_columns=scn.world.wind is not None or any(rt.navigator.estimates_wind for rt in vehicles),
                         boresight_columns=any(getattr(rt.navigator, "estimates_camera_boresight", False) for rt in vehicles),
                         time_offset_columns=any(getattr(rt.navigator, "time_offset_camera", None) for rt in vehicles),
-                        intrinsics_columns=any(getattr(rt.navigator, "intrinsics_camera", None) for rt in vehicles))
+                        intrinsics_columns=any(getattr(rt.navigator, "intrinsics_camera", None) for rt in vehicles),
+                        map_error_columns=any(getattr(getattr(rt.navigator, "ekf", None), "i_map", None) is not None
+                                              for rt in vehicles))
     engine = Engine(
         vehicles, world, scn.physics_rate_hz, scn.duration_s, record_every, recorder,
         realtime=realtime, on_progress=on_progress, frame_sink=frame_sink, formation=scn.formation,
