@@ -9,6 +9,7 @@ from typing import Any
 from testbench.reporting import figures_camera_states as fcs
 from testbench.reporting import figures_events as fe
 from testbench.reporting import figures_gnss as fg
+from testbench.reporting import figures_map_error as fme
 from testbench.reporting import figures_nav as fn
 from testbench.reporting import figures_tan as ft
 from testbench.reporting import figures_wind as fw
@@ -219,7 +220,7 @@ def build_report(run_dir: str | Path, result: MetricsResult | None = None) -> Re
     if result.ismn is not None:
         ismn_rows = _metric_rows(flat, [k for k in flat if k.startswith("ismn.") and not k.endswith(".n")])
         sections.append(Section("Scene matching (ISMN)", "ismn", [Table("Scene-matching metrics", ["metric", "value"], ismn_rows)],
-                                _figs(fe.ismn_fix_figure(record), examples)))
+                                _figs(fe.ismn_fix_figure(record), fme.map_error_figures(record), examples)))
     elif examples:
         sections.append(Section("Scene matching (ISMN)", "ismn", figures=examples))
     if result.tan is not None:
