@@ -46,7 +46,7 @@ def build_ekf(params: InsEkfParams, noise: ImuNoiseSI, fix_error_sigma_ned_m: np
         camera_boresight_sigma_rad=0.0 if p.camera_boresight is None else p.camera_boresight.sigma_deg * DEG_TO_RAD,
         camera_time_offset_sigma_s=0.0 if p.camera_time_offset is None else p.camera_time_offset.sigma_s,
         camera_intrinsics_sigma=(0.0, 0.0, 0.0) if p.camera_intrinsics is None else p.camera_intrinsics.sigmas(),
-        map_error_sigma=(0.0, 0.0) if p.map_error is None else p.map_error.sigmas(),
+        map_error_sigma_m=0.0 if p.map_error is None else p.map_error.sigma_m,
         map_error_correlation_m=math.inf if p.map_error is None else p.map_error.correlation_m,
     )
 
@@ -68,4 +68,4 @@ def optional_state_sigmas(ekf: ErrorStateEKF, params: InsEkfParams) -> Iterator[
     if ekf.i_ci is not None:
         yield ekf.i_ci, p.camera_intrinsics.sigmas()
     if ekf.i_map is not None:
-        yield ekf.i_map, p.map_error.sigmas()
+        yield ekf.i_map, p.map_error.sigma_m

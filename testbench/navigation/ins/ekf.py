@@ -64,7 +64,7 @@ class ErrorStateEKF(Reacquisition):
     """Error-state EKF of one vehicle. Shapes: P (n, n), n = self.n: N_STATES (25) with
     wind_states, else N_NO_WIND (23), plus 3 with the appearance states, 1 with the magnetic
     heading bias, 2 with the optical flow's slow error, 3 with a camera's boresight error, 1 with
-    its time offset, 3 with its intrinsics error and 2-3 with the map's error; error vector layout
+    its time offset, 3 with its intrinsics error and 2 with the map's error; error vector layout
     in error_model (the appearance states, self.i_app, then the magnetic bias, self.i_mag, the
     flow's error, self.i_flow, the boresight, self.i_cam, the time offset, self.i_td, the
     intrinsics, self.i_ci, and the map's error, self.i_map, come last).
@@ -108,11 +108,10 @@ class ErrorStateEKF(Reacquisition):
     [principal point u, v (px, true minus calibrated), focal length (relative)] (all 0: no such
     states): three random constants after the others (self.i_ci), learnt from the fixes through
     their sensitivity to them (PositionFix.intrinsics_sensitivity).
-    map_error_sigma, map_error_correlation_m: 1-sigmas and correlation distance of the reference
-    map's georeference error b_map, (north m, east m) or (north m, east m, scale) (all 0: none):
-    Gauss-Markov states after the others (self.i_map) that decorrelate with the distance flown,
-    exp(-d / correlation), and that every scene-matching fix sees, its north and east whole and
-    the map's scale as the camera's focal length error with the opposite sign.
+    map_error_sigma_m, map_error_correlation_m: 1-sigma per axis and correlation distance of the
+    reference map's georeference error b_map (north, east, m; 0 sigma: none): two Gauss-Markov
+    states after the others (self.i_map) that every scene-matching fix sees whole and that
+    decorrelate with the distance flown, exp(-d / correlation).
     gyro_scale_sigma, scale_corr_angle_rad: the gyros' scale-factor and cross-axis error (1 sigma,
     rad per rad turned) is a constant error in each rate the IMU reads, which the error state
     does not carry: it enters P as attitude noise per angle turned, s^2 Theta |dtheta| per axis,
@@ -136,7 +135,7 @@ class ErrorStateEKF(Reacquisition):
                  mag_bias_correlation_m: float = math.inf, flow_bias_sigma_rps: float = 0.0,
                  flow_bias_tau_s: float = math.inf, flow_bias_correlation_rad: float = math.inf,
                  camera_boresight_sigma_rad: float = 0.0, camera_time_offset_sigma_s: float = 0.0,
-                 camera_intrinsics_sigma=(0.0, 0.0, 0.0), map_error_sigma=(0.0, 0.0),
+                 camera_intrinsics_sigma=(0.0, 0.0, 0.0), map_error_sigma_m: float = 0.0,
                  map_error_correlation_m: float = math.inf, vehicle_id: str | None = None):
         if bias_model not in ("random_walk", "gauss_markov"):
             raise ValueError(f"bias_model {bias_model!r}: expected 'random_walk' or 'gauss_markov'")
@@ -169,11 +168,11 @@ class ErrorStateEKF(Reacquisition):
         """The scene-matching camera's intrinsics error's three states (principal point u, v px;
         focal length, relative), or None."""
         n_ci = n_td + (3 if self.i_ci is not None else 0)
-        self._map_var = np.square(np.asarray(map_error_sigma, float))
+        self._map_var_m2 = float(map_error_sigma_m) ** 2
         self.map_error_correlation_m = float(map_error_correlation_m)
-        self.i_map: slice | None = slice(n_ci, n_ci + self._map_var.size) if np.any(self._map_var > 0.0) else None
-        """The reference map's georeference error's states (north m, east m[, scale]), or None."""
-        self.n = n_ci + (self._map_var.size if self.i_map is not None else 0)
+        self.i_map: slice | None = slice(n_ci, n_ci + 2) if self._map_var_m2 > 0.0 else None
+        """The reference map's georeference error's two states (north, east, m), or None."""
+        self.n = n_ci + (2 if self.i_map is not None else 0)
         """Number of error states (the length of dx, the size of P)."""
         # Correlation times of the IMU bias ERRORS in F (inf: random walk) and of the nominal biases.
         gm = bias_model == "gauss_markov"
@@ -235,7 +234,7 @@ class ErrorStateEKF(Reacquisition):
         self.b_gnss, self.b_fix, self.b_app = np.zeros(3), np.zeros(3), np.zeros(3)
         self.b_mag_rad = self.drag_scale = self.td_s = 0.0
         self.b_flow_rps, self.wind_ne_mps = np.zeros(2), np.zeros(2)
-        self.b_cam_rad, self.intrinsics_error, self.b_map = np.zeros(3), np.zeros(3), np.zeros(self._map_var.size)
+        self.b_cam_rad, self.intrinsics_error, self.b_map = np.zeros(3), np.zeros(3), np.zeros(2)
         self._acc_T = 0.0
         self._acc_fn = [0.0, 0.0, 0.0]
 
@@ -329,7 +328,7 @@ class ErrorStateEKF(Reacquisition):
         if self.i_map is not None:
             # So does the map's error under the footprint (not with time, nor in turns).
             a = math.exp(-math.hypot(vn, ve) * T / self.map_error_correlation_m)
-            self._gauss_markov_step(self.i_map, a, np.diag(self._map_var))
+            self._gauss_markov_step(self.i_map, a, self._map_var_m2 * np.eye(2))
             self.b_map = self.b_map * a
         if self.i_flow is not None:
             # The flow's error decorrelates with time and with the ground its view passes.

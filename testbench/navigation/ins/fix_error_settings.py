@@ -78,19 +78,12 @@ class CameraIntrinsicsParams(ParamsModel):
 
 class MapErrorParams(ParamsModel):
     """`navigation.params.map_error`: the reference map's georeference error (north, east) as
-    filter states that every scene-matching fix sees whole (ErrorStateEKF map_error_*), with a
-    third for the map's local scale where scale_sigma_ppm > 0: it moves each fix's height by the
-    scale times the height, as a focal length error would."""
+    two filter states that every scene-matching fix sees whole (ErrorStateEKF map_error_*).
+    The map's local scale (a smooth displacement field of sigma s and correlation length L
+    stretches it by about s / (1.4 L)) moves each fix's height by that times the height: these
+    states do not carry it; the shared fix error's down axis (fix_error_sigma_down_m) must."""
 
     sigma_m: float = pydantic.Field(gt=0.0, le=100.0)
     """1-sigma per axis (m): the map's stated accuracy (NAIP: 6 m at 95 %, about 2.5 m per axis)."""
     correlation_m: float = pydantic.Field(2000.0, gt=0.0)
     """The distance flown over which the error decorrelates by exp(-1) (m)."""
-    scale_sigma_ppm: float = pydantic.Field(0.0, ge=0.0, le=1e5)
-    """1-sigma of the map's local scale (ppm; 0: no such state): a smooth displacement field of
-    sigma s and correlation length L stretches the map by about s / (1.4 L)."""
-
-    def sigmas(self) -> tuple[float, ...]:
-        """The states' prior 1-sigmas: (north m, east m[, scale])."""
-        s = (self.sigma_m, self.sigma_m)
-        return s + (self.scale_sigma_ppm * 1e-6,) if self.scale_sigma_ppm > 0 else s

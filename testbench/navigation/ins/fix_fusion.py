@@ -49,9 +49,7 @@ class PositionFixFusion:
             pos, lag = offset.carried(pos, lag)
         y, H, R = meas.position_ned(ekf, pos, white, self.ctx.origin, M,
                                     appearance_gain=self.appearance_gain(measurement.quality), vel_lag_s=lag,
-                                    from_map=measurement.source == "ismn",
-                                    focal_sensitivity_m=None if measurement.intrinsics_sensitivity is None
-                                    else measurement.intrinsics_sensitivity[:, 2])
+                                    from_map=measurement.source == "ismn")
         if offset is not None:
             H[:, ekf.i_td] = offset.position_column(M)
         if ekf.i_ci is not None and measurement.intrinsics_sensitivity is not None:

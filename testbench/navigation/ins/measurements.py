@@ -76,7 +76,7 @@ def nominal_pos_ned(ekf, origin: GeodeticOrigin) -> np.ndarray:
 
 
 def position_ned(ekf, pos_ned_m, cov_ned_m2, origin: GeodeticOrigin, att_sensitivity_m_per_rad=None,
-                 appearance_gain: float = 0.0, vel_lag_s=None, from_map: bool = False, focal_sensitivity_m=None):
+                 appearance_gain: float = 0.0, vel_lag_s=None, from_map: bool = False):
     """Position fix in NED at the scenario origin (scene matching): the true position plus the
     error successive fixes share (the b_fix state, origin NED) plus white noise of covariance
     cov_ned_m2; H = [R_on 0 ... I].
@@ -99,10 +99,7 @@ def position_ned(ekf, pos_ned_m, cov_ned_m2, origin: GeodeticOrigin, att_sensiti
     tau (v_est - v_true) = -tau dv: H_v = -tau R_on (-L R_on).
 
     from_map: the fix was matched against the reference map, so with the map error states
-    (ekf.i_map) it also holds the map's displacement b_map[:2] (north, east): H[:2, i_map] = I;
-    and with the map's scale state b_map[2] (a map stretched by 1 + s shows the camera as a focal
-    length 1 - s times the true one would), -s times focal_sensitivity_m (3,), the fix's move
-    per unit of focal length error (PositionFix.intrinsics_sensitivity[:, 2]; None: no column)."""
+    (ekf.i_map) it also holds the map's displacement b_map (north, east): H[:2, i_map] = I."""
     ins = ekf.ins
     y = np.asarray(pos_ned_m, float) - nominal_pos_ned(ekf, origin) - ekf.b_fix
     H = np.zeros((3, ekf.n))
@@ -112,12 +109,8 @@ def position_ned(ekf, pos_ned_m, cov_ned_m2, origin: GeodeticOrigin, att_sensiti
         y = y - appearance_gain * ekf.b_app
         H[:, ekf.i_app] = appearance_gain * np.eye(3)
     if ekf.i_map is not None and from_map:
-        y[:2] = y[:2] - ekf.b_map[:2]
-        H[:2, ekf.i_map.start:ekf.i_map.start + 2] = np.eye(2)
-        if len(ekf.b_map) == 3 and focal_sensitivity_m is not None:
-            s_m = -np.asarray(focal_sensitivity_m, float)
-            y = y - s_m * ekf.b_map[2]
-            H[:, ekf.i_map.start + 2] = s_m
+        y[:2] = y[:2] - ekf.b_map
+        H[:2, ekf.i_map] = np.eye(2)
     if att_sensitivity_m_per_rad is not None:
         M = np.asarray(att_sensitivity_m_per_rad, float)
         H[:, IA] = -M

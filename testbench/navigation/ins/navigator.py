@@ -266,8 +266,8 @@ class InsEkfNavigator(PositionFixFusion, Navigator):
             var_camera_time_offset_s2=None if ekf.i_td is None else float(P[ekf.i_td, ekf.i_td]),
             camera_intrinsics_error=None if ekf.i_ci is None else ekf.intrinsics_error.copy(),
             cov_camera_intrinsics_error=None if ekf.i_ci is None else P[ekf.i_ci, ekf.i_ci].copy(),
-            map_error_ne_m=None if ekf.i_map is None else ekf.b_map[:2].copy(),
-            cov_map_error_ne_m2=None if ekf.i_map is None else P[ekf.i_map, ekf.i_map][:2, :2].copy(),
+            map_error_ne_m=None if ekf.i_map is None else ekf.b_map.copy(),
+            cov_map_error_ne_m2=None if ekf.i_map is None else P[ekf.i_map, ekf.i_map].copy(),
         )
         for a in (est.pos_ned_m, est.vel_ned_mps, est.q_nb_wxyz, est.rpy_rad, est.omega_b_rps,
                   est.cov_pos_ned_m2, est.cov_vel_ned_m2s2, est.cov_att_rad2, est.wind_ne_mps, est.cov_wind_ne_m2s2,

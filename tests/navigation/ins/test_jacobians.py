@@ -191,29 +191,24 @@ def test_mag_H_with_the_heading_bias_state_matches_finite_differences(name):
     np.testing.assert_allclose(H, H_num, rtol=1e-5, atol=3e-6 * np.abs(H).max(), err_msg=name)
 
 
-@pytest.mark.parametrize("scale", [False, True], ids=["north-east", "with-scale"])
-def test_map_fix_H_with_the_map_error_states_matches_finite_differences(scale):
+def test_map_fix_H_with_the_map_error_states_matches_finite_differences():
     """A scene-matching fix with the map's georeference states at a non-zero estimate: its north
-    and east seen whole, the map's scale through the fix's focal-length sensitivity."""
+    and east seen whole."""
     noise = imu_noise_from_datasheet(0.15, 7.0, 0.02, 14.0)
-    sigmas = (2.5, 2.5, 9e-4) if scale else (2.5, 2.5)
-    ekf = ErrorStateEKF(noise, wind_states=True, map_error_sigma=sigmas, map_error_correlation_m=4000.0)
+    ekf = ErrorStateEKF(noise, wind_states=True, map_error_sigma_m=2.5, map_error_correlation_m=4000.0)
     lat, lon, h, v, q = X_HAT
     ekf.initialize(0.0, lat, lon, h, v, q, np.eye(ekf.n))
-    ekf.b_map = np.array([1.5, -2.0, 4e-4])[:len(sigmas)]
-    assert ekf.i_map == slice(N_STATES, N_STATES + len(sigmas))
-    focal = np.array([0.4, -0.3, -830.0])  # m per unit focal error: mostly the height
+    ekf.b_map = np.array([1.5, -2.0])
+    assert ekf.i_map == slice(N_STATES, N_STATES + 2)
 
     def model(e):
-        return meas.position_ned(e, [3000.0, -2000.0, -900.0], np.eye(3) * 25, ORIGIN, from_map=True,
-                                 focal_sensitivity_m=focal)
+        return meas.position_ned(e, [3000.0, -2000.0, -900.0], np.eye(3) * 25, ORIGIN, from_map=True)
 
     y, H, _ = model(ekf)
     plain = meas.position_ned(ekf, [3000.0, -2000.0, -900.0], np.eye(3) * 25, ORIGIN)[0]
-    moved = np.r_[1.5, -2.0, 0.0] + (-focal * 4e-4 if scale else 0.0)
-    np.testing.assert_allclose(plain - y, moved)  # the nominal map error taken out of the residual
-    np.testing.assert_array_equal(H[:2, N_STATES:N_STATES + 2], np.eye(2))
-    H_num = _numeric_H(ekf, model, np.r_[STEPS, 0.1, 0.1, 1e-5][:ekf.n])
+    np.testing.assert_allclose(plain - y, [1.5, -2.0, 0.0])  # the nominal map error taken out of the residual
+    np.testing.assert_array_equal(H[:2, ekf.i_map], np.eye(2))
+    H_num = _numeric_H(ekf, model, np.r_[STEPS, 0.1, 0.1])
     np.testing.assert_allclose(H, H_num, rtol=1e-5, atol=3e-6 * np.abs(H).max())
 
 

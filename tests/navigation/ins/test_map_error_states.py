@@ -19,7 +19,7 @@ ORIGIN = GeodeticOrigin(math.radians(47.0), math.radians(-99.0), 500.0)
 
 
 def _ekf(speed_mps: float) -> ErrorStateEKF:
-    ekf = ErrorStateEKF(imu_noise_from_datasheet(0.15, 7.0, 0.02, 14.0), map_error_sigma=(2.5, 2.5),
+    ekf = ErrorStateEKF(imu_noise_from_datasheet(0.15, 7.0, 0.02, 14.0), map_error_sigma_m=2.5,
                         map_error_correlation_m=4000.0)
     P0 = np.eye(ekf.n) * 1e-4
     P0[ekf.i_map, ekf.i_map] = 0.0  # the map's error known exactly at the start
@@ -52,7 +52,7 @@ def test_the_map_error_decorrelates_over_the_distance_flown_not_over_time():
 def test_a_map_fix_against_a_known_position_teaches_the_map_error():
     """Position known to a centimetre, the map error to 2.5 m: a fix 2 m north and 1 m west of
     the position moves the map error states, not the position."""
-    ekf = ErrorStateEKF(imu_noise_from_datasheet(0.15, 7.0, 0.02, 14.0), map_error_sigma=(2.5, 2.5))
+    ekf = ErrorStateEKF(imu_noise_from_datasheet(0.15, 7.0, 0.02, 14.0), map_error_sigma_m=2.5)
     P0 = np.eye(ekf.n) * 1e-4
     P0[ekf.i_map, ekf.i_map] = 2.5**2 * np.eye(2)
     ekf.initialize(0.0, ORIGIN.lat_rad, ORIGIN.lon_rad, 1300.0, [0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0], P0)
