@@ -1,6 +1,7 @@
-"""world.map_error: a carried map off its georeference shows the ground displaced by the field
-it is given (a shift exactly, a random field pixel by pixel), the field has its sigma and is the
-same for the same seed, and a read through the scene matcher's window cache is the same."""
+"""world.map_error (DisplacedMap, MapDisplacement): a carried map off its georeference shows the
+ground displaced by the field it is given (a shift exactly, a random field pixel by pixel), the
+field has its sigma and is the same for the same seed, and a read through the scene matcher's
+window cache is the same."""
 
 from __future__ import annotations
 
