@@ -325,9 +325,9 @@ class Engine:
         its georeference (world.reference_map_error): the map's displacement averaged over the
         footprint the row's fix was matched in (a 5 x 5 grid over its predicted bounds), what the
         fix inherits from the map; NaN without a footprint. No columns without a map error."""
-        n0, n1, e0, e1 = (row[f"footprint_{k}_m"] for k in ("north_min", "north_max", "east_min", "east_max"))
         if self.world.spec.reference_map_error is None:
             return
+        n0, n1, e0, e1 = (row[f"footprint_{k}_m"] for k in ("north_min", "north_max", "east_min", "east_max"))
         if not all(math.isfinite(x) for x in (n0, n1, e0, e1)):
             row["truth_map_error_north_m"] = row["truth_map_error_east_m"] = math.nan
             return

@@ -1,8 +1,8 @@
 """The georeference error of a reference map a vehicle carries.
 
 An orthophoto is only as well placed as its control points and the DEM it was orthorectified
-over: NAIP's specification allows 6 m (95 %) against ground control, a drone orthophoto without
-ground control errs by metres as a whole. Scene matching then places the camera where the map
+over: an aerial orthophoto programme such as NAIP specifies its accuracy in metres, and a drone
+orthophoto without ground control errs by metres as a whole. Scene matching then places the camera where the map
 says the ground it sees lies, so the map's error passes into every fix, and no filter can see
 it: the fixes agree with each other, not with the truth.
 
@@ -56,6 +56,11 @@ class MapDisplacement:
         for f in self._fields or ():
             digest.update(f.nodes.tobytes())
         self.key = ("map-displacement", self.sigma_m, self.correlation_m, digest.hexdigest())
+
+    @property
+    def has_field(self) -> bool:
+        """Whether d varies over the map (sigma_m > 0), not only the shift."""
+        return self._fields is not None
 
     def at(self, north_m, east_m) -> tuple[np.ndarray, np.ndarray]:
         """(d_north_m, d_east_m) at local (north_m, east_m) (arrays broadcast together)."""
@@ -124,7 +129,7 @@ class DisplacedMap:
         north-west corner is (north0_m, east0_m): evaluated every `step` pixels (a sixteenth of
         the correlation length: the field is smooth) and interpolated linearly between."""
         disp = self.displacement
-        if disp._fields is None:
+        if not disp.has_field:
             return (np.full((h, w), disp.shift_ne_m[0] / g, np.float32),
                     np.full((h, w), disp.shift_ne_m[1] / g, np.float32))
         step = max(1, int(disp.correlation_m / _FIELD_SAMPLES_PER_CORRELATION / g))

@@ -84,6 +84,6 @@ class MapErrorParams(ParamsModel):
     states do not carry it; the shared fix error's down axis (fix_error_sigma_down_m) must."""
 
     sigma_m: float = pydantic.Field(gt=0.0, le=100.0)
-    """1-sigma per axis (m): the map's stated accuracy (NAIP: 6 m at 95 %, about 2.5 m per axis)."""
+    """1-sigma per axis (m): the map's stated accuracy (a CE95 of 6 m is about 2.5 m per axis)."""
     correlation_m: float = pydantic.Field(2000.0, gt=0.0)
     """The distance flown over which the error decorrelates by exp(-1) (m)."""
