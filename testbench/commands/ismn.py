@@ -1,7 +1,8 @@
 """`testbench ismn replay`: a recorded run's camera frames through the scene-matching pipeline,
 open loop (testbench.navigation.ismn.harness), to compare pipeline settings frame by frame;
 `testbench ismn sensitivity`: how much the fixes follow the estimate they are given
-(testbench.navigation.ismn.sensitivity)."""
+(testbench.navigation.ismn.sensitivity); `testbench ismn map-agreement`: how two reference maps
+disagree in georeference, tile by tile (testbench.navigation.ismn.map_agreement)."""
 
 from __future__ import annotations
 
@@ -49,6 +50,16 @@ def register(subparsers) -> None:
                    help="length of the sweep, m (about one working ground sample: paper_ismn_800m works at 1.54 m)")
     s.set_defaults(handler=_sensitivity)
 
+    m = sub.add_parser("map-agreement", help="how far map B shows the ground from where map A shows it, tile by "
+                                             "tile: the figures world.reference_map_error is set from")
+    m.add_argument("map_a", help="GeoTIFF (any CRS)")
+    m.add_argument("map_b", help="GeoTIFF of the same ground (another year, another source)")
+    m.add_argument("--gsd-m", type=float, help="ground sample to compare at, m (default: the coarser map's)")
+    m.add_argument("--tile-m", type=float, default=400.0, help="tile side, m")
+    m.add_argument("--search-m", type=float, default=25.0, help="how far each tile is searched for, m")
+    m.add_argument("--tiles", help="also write each kept tile (centre, offset, peak) to this CSV")
+    m.set_defaults(handler=_map_agreement)
+
 
 def _replay(args) -> int:
     from testbench.navigation.ismn.harness import run, summarise
@@ -74,3 +85,34 @@ def _sensitivity(args) -> int:
     # One line per key (a matrix row-major on its line): valid JSON that reads as a table.
     print("{\n" + ",\n".join(f" {json.dumps(k)}: {json.dumps(v)}" for k, v in summary.items()) + "\n}")
     return 0 if summary["n_used"] else 1
+
+
+def _map_agreement(args) -> int:
+    import math
+
+    from testbench.commands.locate import _map_centre_latlon
+    from testbench.core.errors import InputError
+    from testbench.core.interfaces import GeodeticOrigin
+    from testbench.navigation.ismn.map_agreement import map_agreement
+    from testbench.world.imagery import MapSource
+
+    if not (args.tile_m > 0 and args.search_m > 0) or (args.gsd_m is not None and not args.gsd_m > 0):
+        raise InputError(f"--tile-m, --search-m and --gsd-m must be > 0 (got {args.tile_m}, {args.search_m}, {args.gsd_m})")
+    lat, lon = _map_centre_latlon(args.map_a)
+    origin = GeodeticOrigin(math.radians(lat), math.radians(lon), 0.0)
+    with MapSource(args.map_a, origin) as a, MapSource(args.map_b, origin) as b:
+        fa, fb = a.footprint, b.footprint
+        bounds = (max(fa.north_min_m, fb.north_min_m), min(fa.north_max_m, fb.north_max_m),
+                  max(fa.east_min_m, fb.east_min_m), min(fa.east_max_m, fb.east_max_m))
+        if not (bounds[1] - bounds[0] > args.tile_m and bounds[3] - bounds[2] > args.tile_m):
+            raise InputError(f"{args.map_b}: its ground and {args.map_a}'s share less than one {args.tile_m:g} m tile "
+                             "(expected two maps of the same place)")
+        gsd = args.gsd_m or max(float(a.native_gsd_m), float(b.native_gsd_m))
+        result = map_agreement(a, b, bounds, gsd, args.tile_m, args.search_m)
+    if args.tiles:
+        with open(args.tiles, "w") as f:
+            f.write("centre_north_m,centre_east_m,offset_north_m,offset_east_m,peak\n")
+            for (cn, ce), (dn, de), pk in zip(result.centre_ne_m, result.offset_ne_m, result.peak):
+                f.write(f"{cn:.1f},{ce:.1f},{dn:.3f},{de:.3f},{pk:.3f}\n")
+    print(json.dumps({"map_a": args.map_a, "map_b": args.map_b, **result.summary()}, indent=1))
+    return 0 if len(result.offset_ne_m) else 1
