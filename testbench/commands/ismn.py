@@ -57,7 +57,8 @@ def register(subparsers) -> None:
     m.add_argument("--gsd-m", type=float, help="ground sample to compare at, m (default: the coarser map's)")
     m.add_argument("--tile-m", type=float, default=400.0, help="tile side, m")
     m.add_argument("--search-m", type=float, default=25.0, help="how far each tile is searched for, m")
-    m.add_argument("--tiles", help="also write each kept tile (centre, offset, peak) to this CSV")
+    m.add_argument("--tiles", help="also write each matched tile (centre, offset, peak, kept) to this CSV")
+    m.add_argument("--plot", help="also draw the tiles' offsets as arrows over map A to this PNG")
     m.set_defaults(handler=_map_agreement)
 
 
@@ -109,10 +110,18 @@ def _map_agreement(args) -> int:
                              "(expected two maps of the same place)")
         gsd = args.gsd_m or max(float(a.native_gsd_m), float(b.native_gsd_m))
         result = map_agreement(a, b, bounds, gsd, args.tile_m, args.search_m)
+        if args.plot:
+            from testbench.navigation.ismn.map_agreement import agreement_figure
+            from testbench.navigation.ismn.ortho import to_grey_u8
+
+            preview_gsd = max(gsd, max(bounds[1] - bounds[0], bounds[3] - bounds[2]) / 1500.0)
+            grey = to_grey_u8(a.read_local(*bounds, preview_gsd).data)
+            agreement_figure(result, grey, bounds).savefig(args.plot)
     if args.tiles:
+        keep = result.inliers()
         with open(args.tiles, "w") as f:
-            f.write("centre_north_m,centre_east_m,offset_north_m,offset_east_m,peak\n")
-            for (cn, ce), (dn, de), pk in zip(result.centre_ne_m, result.offset_ne_m, result.peak):
-                f.write(f"{cn:.1f},{ce:.1f},{dn:.3f},{de:.3f},{pk:.3f}\n")
+            f.write("centre_north_m,centre_east_m,offset_north_m,offset_east_m,peak,kept\n")
+            for (cn, ce), (dn, de), pk, k in zip(result.centre_ne_m, result.offset_ne_m, result.peak, keep):
+                f.write(f"{cn:.1f},{ce:.1f},{dn:.3f},{de:.3f},{pk:.3f},{int(k)}\n")
     print(json.dumps({"map_a": args.map_a, "map_b": args.map_b, **result.summary()}, indent=1))
     return 0 if len(result.offset_ne_m) else 1

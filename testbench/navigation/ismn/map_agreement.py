@@ -144,3 +144,33 @@ def correlation_length_m(centres_ne_m: np.ndarray, dev_ne_m: np.ndarray, spacing
             return float(lag_prev + (rho_prev - _EXP_HALF) / (rho_prev - rho) * (lag_k - lag_prev))
         rho_prev, lag_prev = rho, k * spacing_m
     return None
+
+
+def agreement_figure(result: MapAgreement, map_a_grey=None, extent_ne_m=None):
+    """A matplotlib Figure of the tiles' offsets as arrows at their centres (the kept tiles dark,
+    the others grey), over map A's grey image (map_a_grey (H, W) with extent_ne_m (north_min,
+    north_max, east_min, east_max)) when given; east right, north up, arrows scaled so that the
+    largest kept offset spans most of a tile."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(7.0, 6.0), dpi=100, layout="constrained")
+    ax = fig.subplots()
+    if map_a_grey is not None and extent_ne_m is not None:
+        n0, n1, e0, e1 = extent_ne_m
+        ax.imshow(map_a_grey, cmap="gray", extent=(e0, e1, n0, n1), origin="upper", alpha=0.6)
+    keep = result.inliers()
+    d = result.offset_ne_m
+    largest = float(np.max(np.hypot(*d[keep].T))) if keep.any() else 1.0
+    scale = 0.8 * result.tile_m / max(largest, 1e-6)  # plot metres per metre of offset
+    for sel, colour, label in ((keep, "C0", "kept"), (~keep, "0.5", "left out (ground changed)")):
+        if sel.any():
+            ax.quiver(result.centre_ne_m[sel, 1], result.centre_ne_m[sel, 0], d[sel, 1] * scale, d[sel, 0] * scale,
+                      angles="xy", scale_units="xy", scale=1.0, color=colour, width=0.004, label=label)
+    ax.set_aspect("equal")
+    ax.set_xlabel("east (m)")
+    ax.set_ylabel("north (m)")
+    ax.set_title(f"where map B shows each {result.tile_m:g} m tile minus where map A does\n"
+                 f"(arrows x{scale:.0f}: the longest kept is {largest:.1f} m)", fontsize=9)
+    ax.legend(fontsize=8, loc="lower right")
+    return fig
+

@@ -40,12 +40,16 @@ def test_a_displacement_field_is_read_tile_by_tile(seasons):
     assert res.summary()["correlation_length_m"] > 300.0  # a field, not the tiles' white noise
 
 
-def test_two_naip_years_agree_to_metres(realdata, capsys):
+def test_two_naip_years_agree_to_metres(realdata, capsys, tmp_path):
     d = realdata / "naip_nd"
     code = main(["ismn", "map-agreement", str(d / "m_4709963_se_14_1_20160816.tif"),
-                 str(d / "m_4709963_se_14_1_20180716.tif")])
+                 str(d / "m_4709963_se_14_1_20180716.tif"), "--plot", str(tmp_path / "tiles.png"),
+                 "--tiles", str(tmp_path / "tiles.csv")])
     assert code == 0
     s = json.loads(capsys.readouterr().out)
+    rows = (tmp_path / "tiles.csv").read_text().splitlines()
+    assert len(rows) == 1 + s["tiles_matched"] and sum(r.endswith(",1") for r in rows) == s["tiles_inliers"]
+    assert (tmp_path / "tiles.png").read_bytes()[:4] == b"\x89PNG"
     # Measured when written (5 m NAIP, 400 m tiles): 55 of 70 tiles, shift (-1.20, -0.58) m,
     # 1.8 m RMS per axis about it, uncorrelated from one tile to the next.
     assert s["tiles_inliers"] >= 40
