@@ -91,15 +91,15 @@ def _sensitivity(args) -> int:
 def _map_agreement(args) -> int:
     import math
 
-    from testbench.commands.locate import _map_centre_latlon
     from testbench.core.errors import InputError
     from testbench.core.interfaces import GeodeticOrigin
     from testbench.navigation.ismn.map_agreement import map_agreement
+    from testbench.world.geotiff import map_centre_lat_lon_deg
     from testbench.world.imagery import MapSource
 
     if not (args.tile_m > 0 and args.search_m > 0) or (args.gsd_m is not None and not args.gsd_m > 0):
         raise InputError(f"--tile-m, --search-m and --gsd-m must be > 0 (got {args.tile_m}, {args.search_m}, {args.gsd_m})")
-    lat, lon = _map_centre_latlon(args.map_a)
+    lat, lon = map_centre_lat_lon_deg(args.map_a, "map_a")
     origin = GeodeticOrigin(math.radians(lat), math.radians(lon), 0.0)
     with MapSource(args.map_a, origin) as a, MapSource(args.map_b, origin) as b:
         fa, fb = a.footprint, b.footprint

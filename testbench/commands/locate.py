@@ -83,19 +83,6 @@ def load_camera(path: str):
     return cam, CameraMount(R_bc, lever)
 
 
-def _map_centre_latlon(path: str) -> tuple[float, float]:
-    import rasterio
-    from pyproj import Transformer
-
-    try:
-        with rasterio.open(path) as ds:
-            x, y = (ds.bounds.left + ds.bounds.right) / 2, (ds.bounds.bottom + ds.bounds.top) / 2
-            lon, lat = Transformer.from_crs(ds.crs, "EPSG:4326", always_xy=True).transform(x, y)
-    except rasterio.errors.RasterioIOError as exc:
-        raise InputError(f"{path}: cannot open map ({exc})") from None
-    return lat, lon
-
-
 def _locate(args) -> int:
     import cv2
 
@@ -105,6 +92,7 @@ def _locate(args) -> int:
     from testbench.core.registry import build
     from testbench.core.rotations import euler_to_quat
     from testbench.navigation.ismn import IsmnParams, IsmnPipeline
+    from testbench.world.geotiff import map_centre_lat_lon_deg
     from testbench.world.imagery import MapSource
 
     t0 = time.perf_counter()
@@ -125,7 +113,7 @@ def _locate(args) -> int:
         if radius <= 0:
             raise InputError(f"--prior-radius-m: expected a positive radius, got {radius}")
     else:
-        lat, lon = _map_centre_latlon(args.map)
+        lat, lon = map_centre_lat_lon_deg(args.map, "--map")
         radius = None
     origin = GeodeticOrigin(math.radians(lat), math.radians(lon), 0.0)
     rpy = np.radians([roll, pitch, yaw])

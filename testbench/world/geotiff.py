@@ -76,6 +76,17 @@ def open_georaster(path: str | os.PathLike, what: str) -> rasterio.io.DatasetRea
     return ds
 
 
+def map_centre_lat_lon_deg(path: str | os.PathLike, what: str = "map") -> tuple[float, float]:
+    """(lat, lon) degrees of the centre of a georeferenced raster's bounds (InputError when it
+    is missing, unreadable or not georeferenced): the local origin tools put on a map."""
+    from pyproj import Transformer
+
+    with open_georaster(path, what) as ds:
+        x, y = (ds.bounds.left + ds.bounds.right) / 2, (ds.bounds.bottom + ds.bounds.top) / 2
+        lon, lat = Transformer.from_crs(ds.crs, "EPSG:4326", always_xy=True).transform(x, y)
+    return lat, lon
+
+
 class GeoRasterReader:
     """One georeferenced raster, read in windows onto local north-up grids.
 

@@ -17,6 +17,7 @@ from testbench.core.geodesy import ned_to_geodetic, geodetic_to_ned
 from testbench.core.interfaces import GeodeticOrigin
 from testbench.core.rotations import euler_to_dcm
 from testbench.navigation.ismn.synth import render_plane_frame
+from testbench.world.geotiff import map_centre_lat_lon_deg
 from testbench.world.imagery import MapSource
 
 
@@ -49,7 +50,7 @@ def test_bad_camera_key_is_input_error(tmp_path):
 @pytest.mark.parametrize("with_prior", [True, False])
 def test_locate_naip_photo(realdata, tmp_path, capsys, with_prior):
     nd = realdata / "naip_nd"
-    lat0, lon0 = locate._map_centre_latlon(str(nd / "m_4709963_se_14_1_20160816.tif"))
+    lat0, lon0 = map_centre_lat_lon_deg(nd / "m_4709963_se_14_1_20160816.tif")
     origin = GeodeticOrigin(math.radians(lat0), math.radians(lon0), 0.0)
     truth = np.array([120.0, -80.0, -800.0])
     rpy = [2.0, -1.0, 20.0]
