@@ -16,6 +16,11 @@ Onboard processing time (`latency_s`): a fix reaches the navigator latency_s aft
 exposure, stamped with the exposure time; the engine holds it until then (Engine._deliver) and
 the navigator fuses it as a delayed measurement (InsEkfParams.delayed_fixes). One processor:
 a frame that comes while the one before is still being processed is not taken ("busy").
+
+Acquisition (`acquisition`): while the estimate is too uncertain for the filter's gate to
+tell a false match (a launch without GNSS, a long outage), a fix goes to the navigator only
+once the fixes after it agree with it through the INS's displacement (fix_confirmation.py);
+the fixes held meanwhile are recorded with the reason, never delivered.
 """
 
 from __future__ import annotations
@@ -33,6 +38,7 @@ from testbench.core.messages import NavEstimate, PositionFix
 from testbench.core.registry import ParamsModel, build, register
 from testbench.core.rotations import quat_multiply, quat_to_euler, rotvec_to_quat
 from testbench.navigation.fix_columns import position_fix_columns
+from testbench.navigation.fix_confirmation import ConfirmationParams, FixConfirmation
 from testbench.navigation.ismn import IsmnDiagnostics, IsmnParams, IsmnPipeline
 from testbench.navigation.ismn.pipeline import with_camera_readout
 
@@ -58,6 +64,9 @@ class IsmnAttempt:
     exposure_pos_ned_m: np.ndarray | None = None  # the same: where the frame was taken from
     deliver_t_s: float | None = None
     """When the fix reaches the navigator (s; None: at t_s). The engine holds it until then."""
+    held_reason: str = ""
+    """Why the fix was held back and never delivered (acquisition: waiting for confirmation);
+    "" for a fix that went to the navigator."""
 
     def event_rows(self, vehicle_id: str) -> list[tuple[str, dict]]:
         d = self.diag
@@ -69,14 +78,15 @@ class IsmnAttempt:
             quality=float(fix.quality) if fix is not None else float(getattr(d, "peak_quality", 0.0)),
             latency_ms=float(lat.get("ortho_to_fix", lat.get("total", _NAN))),
             total_ms=float(lat.get("total", _NAN)),
-            reason=str(getattr(d, "reason", "")),
+            reason=self.held_reason or str(getattr(d, "reason", "")),
             same_raster=self.same_raster,
             truth_north_m=_NAN, truth_east_m=_NAN, truth_down_m=_NAN, truth_roll_rad=_NAN, truth_height_agl_m=_NAN,
             truth_cloud_fraction=float(self.cloud_fraction),
             truth_shadow_fraction=float(self.shadow_fraction),
             **_exposure_columns(self.exposure_pos_ned_m),
             **_footprint_columns(getattr(d, "window", None)),
-            delivered_t_s=float(self.deliver_t_s if self.deliver_t_s is not None else self.t_s) if fix is not None else _NAN,
+            delivered_t_s=float(self.deliver_t_s if self.deliver_t_s is not None else self.t_s)
+            if fix is not None and not self.held_reason else _NAN,
         )
         return [("ismn", row)]
 
@@ -98,7 +108,9 @@ class IsmnAid(NavigationAid):
     every_n_frames (use one frame in N), example_every_s (keep images for the report),
     latency_s (the onboard processing time, s: each fix reaches the navigator that long after its
     frame's exposure, and frames that come while one is in processing are skipped as "busy"; 0:
-    at once, the default, as the pipeline's own 35-50 ms on a desktop core would be).
+    at once, the default, as the pipeline's own 35-50 ms on a desktop core would be),
+    acquisition (ConfirmationParams: while the estimate's horizontal sigma exceeds above_sigma_m,
+    a fix is delivered only when min_fixes in a row agree; None: every fix at once, the default).
     """
 
     class Params(ParamsModel):
@@ -108,6 +120,7 @@ class IsmnAid(NavigationAid):
         every_n_frames: int = pydantic.Field(1, ge=1)
         example_every_s: float = pydantic.Field(60.0, gt=0)
         latency_s: float = pydantic.Field(0.0, ge=0, le=10.0)
+        acquisition: ConfirmationParams | None = None
 
     def __init__(self, params: Params, *, ctx: BuildContext, sensors: dict, onboard: dict, **_: Any):
         self.params = params
@@ -135,6 +148,7 @@ class IsmnAid(NavigationAid):
         self._next_example_t = 0.0
         self._busy_until_s = -float("inf")
         """Exposure time + latency_s of the last frame the processor took (s)."""
+        self._confirmation = FixConfirmation(params.acquisition) if params.acquisition is not None else None
 
     @property
     def offers_image_pose(self) -> bool:
@@ -157,17 +171,24 @@ class IsmnAid(NavigationAid):
             diag = IsmnDiagnostics(t_s, {}, reason=f"busy: the frame of t={self._busy_until_s - latency:.2f} s "
                                                    f"is still in processing ({latency:g} s)", attempted=False)
             return [], IsmnAttempt(t_s, None, diag, self.same_raster, False)
-        fix, diag = self.pipeline.process(measurement.image, t_s, prior_at_exposure(estimate))
+        prior = prior_at_exposure(estimate)
+        fix, diag = self.pipeline.process(measurement.image, t_s, prior)
         if latency > 0 and getattr(diag, "attempted", True):
             self._busy_until_s = t_s + latency
+        held_reason = ""
+        if fix is not None and self._confirmation is not None:
+            confirmed, held_reason = self._confirmation.offer(fix, prior)
+            fix = confirmed if confirmed is not None else fix  # the row records the fix as delivered (its claim widened) or as held
         keep = measurement.t_s >= self._next_example_t and getattr(diag, "ortho", None) is not None
         if keep:
             self._next_example_t = measurement.t_s + self.params.example_every_s
-        return ([fix] if fix is not None else []), IsmnAttempt(measurement.t_s, fix, diag, self.same_raster, keep,
+        out = [fix] if fix is not None and not held_reason else []
+        return out, IsmnAttempt(measurement.t_s, fix, diag, self.same_raster, keep,
                                                                float(getattr(measurement, "cloud_fraction", 0.0)),
                                                                float(getattr(measurement, "shadow_fraction", 0.0)),
                                                                deliver_t_s=t_s + latency if latency > 0 else None,
-                                                               exposure_pos_ned_m=getattr(measurement, "exposure_pos_ned_m", None))
+                                                               exposure_pos_ned_m=getattr(measurement, "exposure_pos_ned_m", None),
+                                                               held_reason=held_reason)
 
 
 def _footprint_columns(window) -> dict[str, float]:
