@@ -14,6 +14,7 @@ from testbench.scoring.phases import event_turning
 from testbench.scoring.record_io import RunRecord, column, has_columns
 from testbench.scoring.result import (
     FormationMetrics,
+    IsmnAcquisition,
     IsmnClouds,
     IsmnMapError,
     IsmnMetrics,
@@ -119,6 +120,7 @@ def compute_ismn(record: RunRecord) -> IsmnMetrics | None:
     delivered = column(ismn, "delivered_t_s") if "delivered_t_s" in ismn.columns else np.where(fix, column(ismn, "t_s"), np.nan)
     reached = fix & np.isfinite(delivered)
     delay = delivered[reached] - column(ismn, "t_s")[reached]
+    false = fix & (eh > FALSE_FIX_M)
     return IsmnMetrics(
         attempts=n_att,
         fixes=n_fix,
@@ -132,9 +134,52 @@ def compute_ismn(record: RunRecord) -> IsmnMetrics | None:
         smooth=_ismn_phase(eh, pct, fix & ~turning),
         turning=_ismn_phase(eh, pct, fix & turning),
         longest_gap_s=_longest_gap_per_vehicle(ismn, attempted, accepted),
+        false_fixes=int(false.sum()),
+        false_fixes_accepted=int((false & accepted).sum()),
+        acquisition=_ismn_acquisition(ismn, accepted, record.telemetry),
         clouds=_ismn_clouds(ismn, attempted, fix, accepted, eh),
         map_error=_ismn_map_error(ismn, fix, record.telemetry),
     )
+
+
+FALSE_FIX_M = 20.0
+"""A fix farther than this from truth is a match at the wrong place, not a noisy one (the
+matchers' own errors are 0.3-3 m from 150 m to 800 m above ground)."""
+ACQUISITION_AFTER_S = 10.0
+
+
+def _ismn_acquisition(ismn: pd.DataFrame, accepted: np.ndarray, tel: pd.DataFrame) -> IsmnAcquisition | None:
+    """IsmnAcquisition: each vehicle's first accepted fix against its telemetry (the
+    estimate's horizontal error and sigma at the last record before the fix, its error
+    ACQUISITION_AFTER_S after); the latest / largest over the vehicles. None without an
+    accepted fix."""
+    if not accepted.any():
+        return None
+    ids, t = ismn["vehicle_id"].astype(str).to_numpy(), column(ismn, "t_s")
+    reason = ismn["reason"].astype(str) if "reason" in ismn.columns else pd.Series([""] * len(ismn))
+    first, before, sigma, after, settled = [], [], [], [], []
+    for v in np.unique(ids[accepted]):
+        t0 = float(t[accepted & (ids == v)].min())
+        rows = tel[tel["vehicle_id"].astype(str) == v]
+        tt = column(rows, "t_s")
+        err = np.hypot(column(rows, "nav_north_m") - column(rows, "truth_north_m"),
+                       column(rows, "nav_east_m") - column(rows, "truth_east_m"))
+        first.append(t0)
+        i = np.flatnonzero(tt < t0 - 1e-9)
+        if i.size:
+            before.append(float(err[i[-1]]))
+            if has_columns(rows, "nav_sigma_north_m", "nav_sigma_east_m", "nav_cov_ne_m2"):
+                c = np.array([[column(rows, "nav_sigma_north_m")[i[-1]] ** 2, column(rows, "nav_cov_ne_m2")[i[-1]]],
+                              [column(rows, "nav_cov_ne_m2")[i[-1]], column(rows, "nav_sigma_east_m")[i[-1]] ** 2]])
+                sigma.append(float(np.sqrt(max(np.linalg.eigvalsh(c).max(), 0.0))))
+        j = np.flatnonzero(tt >= t0 + ACQUISITION_AFTER_S - 1e-9)
+        if j.size:
+            after.append(float(err[j[0]]))
+            settled.append(err[j])
+    return IsmnAcquisition(first_fix_s=max(first), error_before_m=max(before) if before else None,
+                           sigma_before_m=max(sigma) if sigma else None, error_after_m=max(after) if after else None,
+                           settled_error_m=error_stats(np.concatenate(settled), cep=True) if settled else None,
+                           held=int(reason.str.startswith("held for confirmation").sum()))
 
 
 CLOUDED_FRACTION = 0.5

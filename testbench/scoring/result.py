@@ -13,7 +13,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
-from testbench.scoring.result_ismn import IsmnClouds, IsmnMapError, IsmnMetrics, IsmnPhase  # noqa: F401 -- re-exported
+from testbench.scoring.result_ismn import IsmnAcquisition, IsmnClouds, IsmnMapError, IsmnMetrics, IsmnPhase  # noqa: F401 -- re-exported
 from testbench.scoring.sections import Section as _Section
 from testbench.scoring.sections import _convert, section_dict
 from testbench.scoring.stats import ChiSquareStats, ErrorStats

@@ -61,6 +61,26 @@ class IsmnMapError(Section):
 
 
 @dataclass(frozen=True)
+class IsmnAcquisition(Section):
+    """How scene matching took the navigation over, from whatever the estimate was before.
+
+    first_fix_s: the time of the first fix the filter accepted (with several vehicles, the
+    latest vehicle's); error_before_m / sigma_before_m: the estimate's horizontal error and
+    claimed sigma (the larger axis of its north-east ellipse) at the last record before that
+    fix; error_after_m: its horizontal error ACQUISITION_AFTER_S (10 s) after it (the largest
+    over the vehicles, each figure); settled_error_m: the estimate's horizontal error from then
+    to the run's end (all vehicles' rows); held: fixes held back for confirmation and never delivered
+    (IsmnAid acquisition)."""
+
+    first_fix_s: float
+    error_before_m: float | None = None
+    sigma_before_m: float | None = None
+    error_after_m: float | None = None
+    settled_error_m: ErrorStats | None = None
+    held: int = 0
+
+
+@dataclass(frozen=True)
 class IsmnMetrics(Section):
     """Inertial-aided scene matching.
 
@@ -71,7 +91,10 @@ class IsmnMetrics(Section):
     IsmnAid latency_s; 0: at once); busy_frames: frames the processor skipped because it was
     still on an earlier one (not attempts); all / smooth / turning: error of the produced fixes;
     longest_gap_s: the longest time between two accepted fixes, or from the last one to the
-    last attempt (s; from the first accepted fix on); clouds: the frames under cloud (only
+    last attempt (s; from the first accepted fix on); false_fixes / false_fixes_accepted: the
+    fixes farther than FALSE_FIX_M (20 m) from truth, matches at the wrong place rather than
+    noisy ones, and how many of them the filter took; acquisition: the first accepted fix and
+    the estimate before and after it (only where one was accepted); clouds: the frames under cloud (only
     where the world has clouds); map_error: the map's share of the fixes' error (only where
     the carried map is off its georeference).
     """
@@ -88,5 +111,8 @@ class IsmnMetrics(Section):
     smooth: IsmnPhase | None = None
     turning: IsmnPhase | None = None
     longest_gap_s: float | None = None
+    false_fixes: int = 0
+    false_fixes_accepted: int = 0
+    acquisition: IsmnAcquisition | None = None
     clouds: IsmnClouds | None = None
     map_error: IsmnMapError | None = None
