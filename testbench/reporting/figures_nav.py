@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy import stats as sps
 
@@ -77,6 +79,10 @@ def _error_panels(record: RunRecord, vid: str) -> FigureItem | None:
     tr, det = sn**2 + se**2, sn**2 * se**2 - cne**2
     lam_max = 0.5 * tr + np.sqrt(np.maximum(0.25 * tr * tr - det, 0.0))
     spans, spoofed = denied_spans(record, vid), spoofed_spans(record, vid)
+    eh = np.hypot(e[:, 0], e[:, 1])
+    # An error that spans decades (a start from a kilometre-wide prior, then metres) is drawn on
+    # log scales, else the metres after the first fix are a flat line at zero.
+    log = _spans_decades(eh)
     fig = new_figure(9.0, 7.0)
     axes = fig.subplots(3, 1, sharex=True)
     for ax, err, sig, name in ((axes[0], e[:, 0], sn, "north"), (axes[1], e[:, 1], se, "east")):
@@ -86,15 +92,21 @@ def _error_panels(record: RunRecord, vid: str) -> FigureItem | None:
         if np.isfinite(sig).any():
             ax.fill_between(t, -3 * sig, 3 * sig, color="C0", alpha=0.15, lw=0, label="±3σ (reported)")
         ax.set_ylabel(f"{name} error (m)")
+        if log:
+            # Linear within the decade that holds 3 median sigmas: the ticks then fall on decades.
+            three_sigma = 3.0 * float(np.nanmedian(sig)) if np.isfinite(sig).any() else 1.0
+            ax.set_yscale("symlog", linthresh=10.0 ** math.ceil(math.log10(max(three_sigma, 0.1))))
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=7, loc="upper left")
     ax = axes[2]
     shade_spans(ax, spans)
     shade_spans(ax, spoofed, label="GNSS spoofed", color=SPOOFED_COLOR)
-    ax.plot(t, np.hypot(e[:, 0], e[:, 1]), lw=1.0, color="C3", label="horizontal error")
+    ax.plot(t, eh, lw=1.0, color="C3", label="horizontal error")
     if np.isfinite(lam_max).any():
         ax.plot(t, K_2D_3SIGMA * np.sqrt(lam_max), "k--", lw=1.0, label="99.73 % bound (2-D 3σ)")
     ax.set_ylabel("horizontal error (m)")
+    if log:
+        ax.set_yscale("log")
     ax.set_xlabel("time (s)")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7, loc="upper left")
@@ -102,9 +114,18 @@ def _error_panels(record: RunRecord, vid: str) -> FigureItem | None:
         f"Navigation error vs time: {vid}",
         "Estimate minus truth. North and east with the navigator's ±3σ; horizontal error with the radius "
         f"that holds it with 99.73 % probability ({K_2D_3SIGMA:.2f} × the largest horizontal σ). "
-        "Shaded: GNSS denied" + (" (orange) and spoofed (violet)." if spoofed else "."),
+        "Shaded: GNSS denied" + (" (orange) and spoofed (violet)." if spoofed else ".")
+        + (" Log scales (north and east linear within the decade of 3 × the median σ): the error spans more than two decades."
+           if log else ""),
         fig,
     )
+
+
+def _spans_decades(err_m: np.ndarray) -> bool:
+    """Whether an error series (m) spans more than two decades: its largest value above 100
+    times its median (a start far off, then metres)."""
+    ok = err_m[np.isfinite(err_m)]
+    return ok.size > 0 and float(np.max(ok)) > 100.0 * max(float(np.median(ok)), 1e-3)
 
 
 def error_time_figures(record: RunRecord) -> list[FigureItem]:
