@@ -22,7 +22,7 @@ from testbench.reporting.figures_common import (
 from testbench.reporting.model import FigureItem
 from testbench.scoring.metrics_control import cross_track_m
 from testbench.scoring.metrics_events import ismn_fix_errors
-from testbench.scoring.metrics_nav import denied_mask, position_errors_ned_m
+from testbench.scoring.metrics_nav import denied_mask, horizontal_sigma_max_m, position_errors_ned_m
 from testbench.scoring.phases import event_turning, telemetry_turning
 from testbench.scoring.record_io import RunRecord, column
 
@@ -74,10 +74,7 @@ def _error_panels(record: RunRecord, vid: str) -> FigureItem | None:
     t = column(tel, "t_s")
     e = position_errors_ned_m(tel)
     sn, se = column(tel, "nav_sigma_north_m"), column(tel, "nav_sigma_east_m")
-    cne = np.nan_to_num(column(tel, "nav_cov_ne_m2"), nan=0.0)
-    # Largest eigenvalue of the 2x2 horizontal covariance: the worst-direction sigma^2.
-    tr, det = sn**2 + se**2, sn**2 * se**2 - cne**2
-    lam_max = 0.5 * tr + np.sqrt(np.maximum(0.25 * tr * tr - det, 0.0))
+    sigma_h = horizontal_sigma_max_m(tel)  # the worst-direction sigma
     spans, spoofed = denied_spans(record, vid), spoofed_spans(record, vid)
     eh = np.hypot(e[:, 0], e[:, 1])
     # An error that spans decades (a start from a kilometre-wide prior, then metres) is drawn on
@@ -102,8 +99,8 @@ def _error_panels(record: RunRecord, vid: str) -> FigureItem | None:
     shade_spans(ax, spans)
     shade_spans(ax, spoofed, label="GNSS spoofed", color=SPOOFED_COLOR)
     ax.plot(t, eh, lw=1.0, color="C3", label="horizontal error")
-    if np.isfinite(lam_max).any():
-        ax.plot(t, K_2D_3SIGMA * np.sqrt(lam_max), "k--", lw=1.0, label="99.73 % bound (2-D 3σ)")
+    if np.isfinite(sigma_h).any():
+        ax.plot(t, K_2D_3SIGMA * sigma_h, "k--", lw=1.0, label="99.73 % bound (2-D 3σ)")
     ax.set_ylabel("horizontal error (m)")
     if log:
         ax.set_yscale("log")

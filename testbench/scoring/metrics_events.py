@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from testbench.scoring.metrics_nav import MIN_AGL_FOR_PCT_M
+from testbench.scoring.metrics_nav import MIN_AGL_FOR_PCT_M, horizontal_error_m, horizontal_sigma_max_m
 from testbench.scoring.phases import event_turning
 from testbench.scoring.record_io import RunRecord, column, has_columns
 from testbench.scoring.result import (
@@ -161,17 +161,13 @@ def _ismn_acquisition(ismn: pd.DataFrame, accepted: np.ndarray, tel: pd.DataFram
     for v in np.unique(ids[accepted]):
         t0 = float(t[accepted & (ids == v)].min())
         rows = tel[tel["vehicle_id"].astype(str) == v]
-        tt = column(rows, "t_s")
-        err = np.hypot(column(rows, "nav_north_m") - column(rows, "truth_north_m"),
-                       column(rows, "nav_east_m") - column(rows, "truth_east_m"))
+        tt, err = column(rows, "t_s"), horizontal_error_m(rows)
         first.append(t0)
         i = np.flatnonzero(tt < t0 - 1e-9)
         if i.size:
             before.append(float(err[i[-1]]))
             if has_columns(rows, "nav_sigma_north_m", "nav_sigma_east_m", "nav_cov_ne_m2"):
-                c = np.array([[column(rows, "nav_sigma_north_m")[i[-1]] ** 2, column(rows, "nav_cov_ne_m2")[i[-1]]],
-                              [column(rows, "nav_cov_ne_m2")[i[-1]], column(rows, "nav_sigma_east_m")[i[-1]] ** 2]])
-                sigma.append(float(np.sqrt(max(np.linalg.eigvalsh(c).max(), 0.0))))
+                sigma.append(float(horizontal_sigma_max_m(rows.iloc[[i[-1]]])[0]))
         j = np.flatnonzero(tt >= t0 + ACQUISITION_AFTER_S - 1e-9)
         if j.size:
             after.append(float(err[j[0]]))

@@ -46,6 +46,15 @@ def horizontal_error_m(tel: pd.DataFrame) -> np.ndarray:
     return np.hypot(e[:, 0], e[:, 1])
 
 
+def horizontal_sigma_max_m(tel: pd.DataFrame) -> np.ndarray:
+    """The claimed horizontal sigma in its worst direction (m), shape (n,): the square root of
+    the larger eigenvalue of each row's north-east covariance (closed form for 2 x 2)."""
+    sn2, se2 = column(tel, "nav_sigma_north_m") ** 2, column(tel, "nav_sigma_east_m") ** 2
+    cne = np.nan_to_num(column(tel, "nav_cov_ne_m2"), nan=0.0)
+    tr, det = sn2 + se2, sn2 * se2 - cne * cne
+    return np.sqrt(0.5 * tr + np.sqrt(np.maximum(0.25 * tr * tr - det, 0.0)))
+
+
 def row_durations_s(tel: pd.DataFrame) -> np.ndarray:
     """Time each row stands for (s): the step to the vehicle's next row (last: median step)."""
     t = column(tel, "t_s")
