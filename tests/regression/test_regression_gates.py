@@ -2,7 +2,8 @@
 
 Each case flies a scenario through the real command line (in-process), shortened only as far as
 keeps every phase its thresholds look at (the scene-matching flights keep GNSS denial, or the
-spoofer, from 60 s and their first 30 deg turn at about 96-111 s; the terrain-aided flights 240 s
+spoofer, from 60 s and their first 30 deg turn at about 96-111 s; the cold starts 30 s, the first
+fix and 20 s of settled flight after it; the terrain-aided flights 240 s
 of denial, twelve windows of radar ranges and two turns; the control studies fly in full), and asserts
 exit status 0 with every threshold in `metrics.json` passed. A renamed or missing metric fails
 here too (thresholds.py treats a missing key as a failure).
@@ -54,6 +55,8 @@ GATED = {
     "paper_ismn_clouds": 120.0,
     "ins_spoofed_800m": 120.0,
     "naip_ismn_800m": 120.0,
+    "paper_ismn_cold_start": 30.0,
+    "naip_ismn_cold_start": 30.0,
     "lowalt_ismn_150m": 120.0,
     "tan_radalt_300m": 300.0,
     "tan_sainthelens": 300.0,
