@@ -14,7 +14,8 @@ means differ by more than a relative tolerance.
 Direction comes from the metric's name: errors, latencies and wall times are better lower;
 rates, recall, precision and real-time factors better higher, except what a spoofer got out of
 the filter (the share of its fixes fused, how long it held it), which is better lower, as are a
-scene matcher's longest gap between fixes and its fixes taken from overcast frames; anything
+scene matcher's longest gap between fixes, its fixes taken from overcast frames, its false fixes
+(made, and taken) and a cold start's time to its first fix; anything
 else (counts, NEES, bank angles, times of events) is only "changed". Timing figures (wall time, real-time factor,
 latency, microseconds) depend on the machine and its load: they are reported but never make a
 comparison fail unless asked (the project measures speed as ratios within one process, see
@@ -39,7 +40,11 @@ from scipy import stats
 # better higher: too cautious a filter falls below the band as surely as a confident one above.
 DIRECTION_RULES: tuple[tuple[str, int], ...] = (
     (".nees.", 0), (".nis.", 0), ("sigma", 0), ("ambiguous", 0),
+    # A cold start's error before its first fix is the prior's draw, not the estimator's doing.
+    ("error_before", 0),
     (".spoofed.gnss_accept_rate", -1), ("gnss_captured_s", -1), ("longest_gap_s", -1), ("overcast_accepted", -1),
+    # Matches at the wrong place, made or taken, and a cold start's wait for its first fix.
+    ("false_fixes", -1), ("first_fix_s", -1),
     ("error", -1), ("latency", -1), ("miss", -1), ("overshoot", -1), ("wall_time", -1), ("_us", -1),
     ("fix_rate", +1), ("correct_rate", +1), ("accept_rate", +1), ("pass_rate", +1), ("fraction_within", +1),
     ("recall", +1), ("precision", +1), ("real_time_factor", +1),

@@ -34,6 +34,13 @@ from testbench.sim.bench import SCENARIOS_DIR
     ("nav.lost_at_s", 0),
     ("batch.nees_position.fraction_within", +1),
     ("batch.threshold_pass_rate.value", +1),
+    ("ismn.false_fixes", -1),
+    ("vehicles.uav0.ismn.false_fixes_accepted", -1),
+    ("ismn.acquisition.first_fix_s", -1),
+    ("ismn.acquisition.error_before_m", 0),  # the prior's draw
+    ("ismn.acquisition.sigma_before_m", 0),
+    ("ismn.acquisition.error_after_m", -1),
+    ("ismn.acquisition.held", 0),
 ])
 def test_direction_from_the_key(key, expected):
     assert direction(key) == expected
