@@ -158,20 +158,27 @@ def cdf_figure(record: RunRecord) -> FigureItem | None:
     fig = new_figure(10.0, 4.0)
     axes = fig.subplots(1, 2 if ismn is not None else 1, squeeze=False)[0]
     groups = [("all", np.ones_like(turning)), ("smooth", ~turning), ("turning", turning), ("GNSS denied", denied)]
-    _cdf_axes(axes[0], eh, groups, "navigation horizontal error (m)")
+    log = _cdf_axes(axes[0], eh, groups, "navigation horizontal error (m)")
     if ismn is not None:
         fix_eh, _ = ismn_fix_errors(ismn)
         t_ism = event_turning(record, ismn)
-        _cdf_axes(axes[1], fix_eh, [("all", np.ones_like(t_ism)), ("smooth", ~t_ism), ("turning", t_ism)], "scene-matching fix horizontal error (m)")
+        log |= _cdf_axes(axes[1], fix_eh, [("all", np.ones_like(t_ism)), ("smooth", ~t_ism), ("turning", t_ism)], "scene-matching fix horizontal error (m)")
     return FigureItem(
         "Error CDFs per phase",
         "Fraction of samples with horizontal error below x. Phases from the true bank and turn rate "
-        f"(turning: |bank| > {record.phases['turn_bank_deg']:g}° or |turn rate| > {record.phases['turn_rate_deg_s']:g}°/s).",
+        f"(turning: |bank| > {record.phases['turn_bank_deg']:g}° or |turn rate| > {record.phases['turn_rate_deg_s']:g}°/s)."
+        + (" Log x where the errors span more than two decades (a start far off, false matches)." if log else ""),
         fig,
     )
 
 
-def _cdf_axes(ax, values, groups, xlabel) -> None:
+def _cdf_axes(ax, values, groups, xlabel) -> bool:
+    """Step CDFs of values (m) per group mask on ax; a log x axis when the values span more than
+    two decades, where a linear one would crush the metres against the kilometres. Returns
+    whether it is log."""
+    log = _spans_decades(values)
+    if log:
+        ax.set_xscale("log")
     for (name, mask), style in zip(groups, ("-", "-", "-", ":")):
         v, p = ecdf(values[mask])
         if v.size:
@@ -182,6 +189,7 @@ def _cdf_axes(ax, values, groups, xlabel) -> None:
     ax.set_ylim(0, 1.02)
     ax.grid(True, alpha=0.3)
     legend_or_note(ax, "no samples", fontsize=7, loc="lower right")
+    return log
 
 
 def control_figure(record: RunRecord) -> FigureItem | None:
