@@ -31,7 +31,7 @@ from testbench.navigation.ismn.mapcache import MapWindowCache, quantise_gsd
 from testbench.navigation.ismn.geometry import estimate_pose, footprint_bounds, nadir_gsd_m, predict_search_window
 from testbench.navigation.ismn.cloud_mask import CloudMaskParams, cloud_mask
 from testbench.navigation.ismn.ortho import Orthorectifier, to_grey_u8
-from testbench.navigation.ismn.pose import image_heading, solve_camera_pose
+from testbench.navigation.ismn.pose import image_heading, seed_centre, solve_camera_pose
 from testbench.navigation.ismn.rolling import RowMotion
 from testbench.navigation.ismn.types import IsmnDiagnostics, MatchPrior
 
@@ -384,7 +384,11 @@ class IsmnPipeline:
         # attitude would otherwise turn its attitude error into a position error of the fix.
         att_cov = (np.asarray(estimate.cov_att_rad2, float) + math.radians(p.att_prior_floor_deg) ** 2 * np.eye(3)
                    if p.use_attitude_prior else None)
-        sol = solve_camera_pose(X, uv, self._solve_K(estimate), centre, R_nc, sigma_px * g, att_cov,
+        # Where the estimate put each ortho pixel's ground: the solve starts from the match's
+        # offset when the estimate is too far off for it to converge from there (a cold start).
+        pred_north, pred_east = mapw.rowcol_to_ne(o_px[:, 1] + r0, o_px[:, 0] + c0)
+        c_seed = seed_centre(centre, height, north - pred_north, east - pred_east)
+        sol = solve_camera_pose(X, uv, self._solve_K(estimate), c_seed, R_nc, sigma_px * g, att_cov,
                                 sigma_img_px=p.sigma_img_px, method=p.pose_method,
                                 point_poses=None if motion is None else motion.point_poses(uv))
         t4 = time.perf_counter()
@@ -424,3 +428,4 @@ class IsmnPipeline:
                           image_pos_ned_m=image_pose[0], image_R_nb=image_pose[1], image_pose_cov=image_pose[2],
                           intrinsics_sensitivity=sol.intrinsics_sensitivity)
         return fix, IsmnDiagnostics(t_s, dict(lat), **{**keep, "peak_quality": quality})
+

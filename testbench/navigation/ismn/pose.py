@@ -170,6 +170,25 @@ def _normal_equations(J: np.ndarray, W: np.ndarray, r: np.ndarray) -> tuple[np.n
     return JtW @ J.reshape(-1, 6), JtW @ r.reshape(-1)
 
 
+SEED_SHIFT_FRACTION = 0.25
+"""A match that places the ground farther from the estimate than this fraction of the camera's
+height above it moves the pose solve's seed by that offset (seed_centre). Gauss-Newton from the
+estimate diverges once the offset is a few heights (a cold start 4-6 km off at 800 m: solves
+landing thousands of km away); below a quarter of the height it converges from either seed to
+the same pose, so tracking runs keep the estimate's seed and their records bit for bit."""
+
+
+def seed_centre(centre_ned_m: np.ndarray, height_m: float, d_north_m: np.ndarray, d_east_m: np.ndarray) -> np.ndarray:
+    """(3,) the camera centre (NED, m) solve_camera_pose starts from: the estimate's centre_ned_m,
+    moved by the match's horizontal offset when that exceeds SEED_SHIFT_FRACTION of height_m (m
+    above ground). The offset is the median over the correspondences of d_north_m, d_east_m (N,):
+    where the map places each point minus where the estimate put it."""
+    d = np.array([np.median(d_north_m), np.median(d_east_m)])
+    if not np.all(np.isfinite(d)) or float(np.hypot(*d)) <= SEED_SHIFT_FRACTION * height_m:
+        return centre_ned_m
+    return np.asarray(centre_ned_m, float) + np.r_[d, 0.0]
+
+
 def solve_camera_pose(
     X_ned_m: np.ndarray,
     uv_px: np.ndarray,

@@ -8,7 +8,7 @@ import pytest
 from testbench.core.camera_geometry import camera_pose_ned
 from testbench.core.rotations import euler_to_dcm
 from testbench.navigation.ismn import IsmnParams, IsmnPipeline, NccMatcher
-from testbench.navigation.ismn.pose import solve_camera_pose
+from testbench.navigation.ismn.pose import SEED_SHIFT_FRACTION, seed_centre, solve_camera_pose
 from testbench.navigation.ismn.synth import RasterMapSource, procedural_seasons, render_plane_frame
 
 
@@ -26,6 +26,31 @@ def test_pnp_recovers_pose_from_exact_correspondences(camera, mount, method):
     np.testing.assert_allclose(sol.centre_ned_m, c, atol=1e-3)
     np.testing.assert_allclose(sol.R_nc, R_nc, atol=1e-7)
     assert sol.inliers.all() and np.all(np.linalg.eigvalsh(sol.cov_centre_m2) > 0)
+
+
+def test_a_cold_start_far_off_seeds_the_solve_with_the_match_offset(camera, mount):
+    """An estimate 5 km off at 800 m (a cold start's 3 km prior), banked 30 deg in the turn it
+    launched in: the map places the ground 5 km from where the estimate puts it. From the
+    estimate's centre Gauss-Newton does not reach the pose; seeded with the match's offset
+    (seed_centre) it does. An offset below a quarter of the height leaves the seed as it is."""
+    rng = np.random.default_rng(4)
+    R_nb = euler_to_dcm(np.radians([30.0, 2.0, 20.0]))
+    c, R_nc = camera_pose_ned(np.array([0.0, 0.0, -800.0]), R_nb, mount)
+    uv = np.c_[rng.uniform(0, camera.width_px, 40), rng.uniform(0, camera.height_px, 40)]
+    rays = (np.c_[uv, np.ones(40)] @ np.linalg.inv(camera.K).T) @ R_nc.T  # NED directions
+    X = c + rays * (-c[2] / rays[:, 2:3])  # where each pixel's ray meets the ground (down 0)
+    est = c + np.array([3000.0, -4000.0, 0.0])
+    predicted = X[:, :2] + (est - c)[:2]  # where the estimate puts each point's ground
+    seed = seed_centre(est, 800.0, X[:, 0] - predicted[:, 0], X[:, 1] - predicted[:, 1])
+    np.testing.assert_allclose(seed, c, atol=1e-6)
+    P = np.diag(np.radians([0.1, 0.1, 0.3]) ** 2)  # the INS attitude as the solve's prior
+    far = solve_camera_pose(X, uv, camera.K, est, R_nc, 1.0, P)
+    assert far is None or np.hypot(*(far.centre_ned_m - c)[:2]) > 1000.0
+    sol = solve_camera_pose(X, uv, camera.K, seed, R_nc, 1.0, P)
+    np.testing.assert_allclose(sol.centre_ned_m, c, atol=1e-3)
+    near = c + np.array([0.2 * 800.0, 0.0, 0.0])
+    assert SEED_SHIFT_FRACTION * 800.0 > 160.0
+    np.testing.assert_array_equal(seed_centre(near, 800.0, np.full(40, -160.0), np.zeros(40)), near)
 
 
 def test_pose_attitude_prior_sensitivity_matches_finite_differences(camera, mount):
