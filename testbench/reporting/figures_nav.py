@@ -167,7 +167,7 @@ def cdf_figure(record: RunRecord) -> FigureItem | None:
         "Error CDFs per phase",
         "Fraction of samples with horizontal error below x. Phases from the true bank and turn rate "
         f"(turning: |bank| > {record.phases['turn_bank_deg']:g}° or |turn rate| > {record.phases['turn_rate_deg_s']:g}°/s)."
-        + (" Log x where the errors span more than two decades (a start far off, false matches)." if log else ""),
+        + (" Log x where the errors span more than two decades (a start far off, fixes far off)." if log else ""),
         fig,
     )
 

@@ -43,7 +43,7 @@ DIRECTION_RULES: tuple[tuple[str, int], ...] = (
     # A cold start's error before its first fix is the prior's draw, not the estimator's doing.
     ("error_before", 0),
     (".spoofed.gnss_accept_rate", -1), ("gnss_captured_s", -1), ("longest_gap_s", -1), ("overcast_accepted", -1),
-    # Matches at the wrong place, made or taken, and a cold start's wait for its first fix.
+    # Fixes more than 20 m from truth, made or taken, and a cold start's wait for its first fix.
     ("false_fixes", -1), ("first_fix_s", -1),
     ("error", -1), ("latency", -1), ("miss", -1), ("overshoot", -1), ("wall_time", -1), ("_us", -1),
     ("fix_rate", +1), ("correct_rate", +1), ("accept_rate", +1), ("pass_rate", +1), ("fraction_within", +1),

@@ -428,4 +428,3 @@ class IsmnPipeline:
                           image_pos_ned_m=image_pose[0], image_R_nb=image_pose[1], image_pose_cov=image_pose[2],
                           intrinsics_sensitivity=sol.intrinsics_sensitivity)
         return fix, IsmnDiagnostics(t_s, dict(lat), **{**keep, "peak_quality": quality})
-
