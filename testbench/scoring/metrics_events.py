@@ -143,8 +143,8 @@ def compute_ismn(record: RunRecord) -> IsmnMetrics | None:
 
 
 FALSE_FIX_M = 20.0
-"""A fix farther than this from truth is a match at the wrong place, not a noisy one (the
-matchers' own errors are 0.3-3 m from 150 m to 800 m above ground)."""
+"""A fix farther than this from truth is a wrong one (a match at the wrong place, or a pose solved
+wrong), not a noisy one (the matchers' own errors are 0.3-3 m from 150 m to 800 m above ground)."""
 ACQUISITION_AFTER_S = 10.0
 
 
