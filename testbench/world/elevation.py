@@ -8,6 +8,7 @@ in metres above sea level and an origin altitude in metres compare directly. A p
 
 from __future__ import annotations
 
+import math
 from collections import OrderedDict
 
 import numpy as np
@@ -16,7 +17,7 @@ from rasterio.enums import Resampling
 from testbench.core.errors import InputError
 from testbench.core.interfaces import GeodeticOrigin
 from testbench.world.geotiff import GeoRasterReader
-from testbench.world.raster import LocalRaster, sample_bilinear
+from testbench.world.raster import LocalRaster, bilinear_point, sample_bilinear
 
 _TILE_PX = 256
 
@@ -37,6 +38,10 @@ class FlatElevation:
     def height_and_valid(self, north_m, east_m):
         h = self.height_m(north_m, east_m)
         return h, np.ones(h.shape, bool)
+
+    def height_at(self, north_m: float, east_m: float) -> float:
+        """height_m at one point (m above the origin altitude)."""
+        return self.height
 
     def read_local(self, north_min_m, north_max_m, east_min_m, east_max_m, gsd_m) -> LocalRaster:
         """Constant float32 grid (same grid convention as MapSource.read_local)."""
@@ -115,6 +120,10 @@ class ElevationModel:
         tj = np.floor(e / size).astype(np.int64)
         out = np.full(n.shape, self.outside_height_m)
         ok = np.zeros(n.shape, bool)
+        if n.size and (ti == ti.flat[0]).all() and (tj == tj.flat[0]).all():
+            # All in one tile (a sensor's footprint, a beam): no sort into tiles.
+            v, good = sample_bilinear(self._tile((int(ti.flat[0]), int(tj.flat[0]))), n, e)
+            return np.where(good, v, self.outside_height_m), good
         keys = np.stack([ti.ravel(), tj.ravel()], axis=1)
         uniq, inv = np.unique(keys, axis=0, return_inverse=True)
         inv = inv.reshape(n.shape)
@@ -128,6 +137,18 @@ class ElevationModel:
     def height_m(self, north_m, east_m) -> np.ndarray:
         """Terrain height (m above the origin altitude) at local NE points, bilinear."""
         return self.height_and_valid(north_m, east_m)[0]
+
+    def height_at(self, north_m: float, east_m: float) -> float:
+        """height_m at one point (m above the origin altitude), the same value bit for bit,
+        without numpy's per-call cost (the dynamics' terrain under a vehicle at every step).
+        A non-finite point is off the DEM: outside_height_m."""
+        n, e = float(north_m), float(east_m)
+        if not (math.isfinite(n) and math.isfinite(e)):
+            return self.outside_height_m
+        size = _TILE_PX * self.native_gsd_m
+        t = self._tile((math.floor(-n / size), math.floor(e / size)))
+        v, good = bilinear_point(t.data, t.valid, (t.north0_m - n) / t.gsd_m - 0.5, (e - t.east0_m) / t.gsd_m - 0.5)
+        return v if good else self.outside_height_m
 
     def close(self) -> None:
         self._reader.close()

@@ -161,3 +161,67 @@ def test_grey_and_elevation(tmp_path, origin):
                   from_origin(float(lon) - 10 * res, float(lat) + 10 * res, res, res))
     v, ok = MapSource(g, origin).sample(0.0, 0.0)
     assert ok and v.tolist() == [99.0, 99.0, 99.0]
+
+
+def _reference_bilinear(data, valid, row, col):
+    """Bilinear by the textbook formula, point by point (two-index lookups), with the
+    validity rule of sample_bilinear: the reference the vectorised paths are held to."""
+    h, w = data.shape[:2]
+    out, good = [], []
+    for r, c in zip(np.ravel(row), np.ravel(col)):
+        if not (0 <= r <= h - 1 and 0 <= c <= w - 1):
+            out.append(np.zeros(data.shape[2:])), good.append(False)
+            continue
+        r0, c0 = min(int(math.floor(r)), max(h - 2, 0)), min(int(math.floor(c)), max(w - 2, 0))
+        fr, fc = r - r0, c - c0
+        v, ok = np.zeros(data.shape[2:]), True
+        for wt, ri, ci in (((1 - fr) * (1 - fc), r0, c0), ((1 - fr) * fc, r0, min(c0 + 1, w - 1)),
+                           (fr * (1 - fc), min(r0 + 1, h - 1), c0), (fr * fc, min(r0 + 1, h - 1), min(c0 + 1, w - 1))):
+            v = v + data[ri, ci].astype(np.float64) * wt
+            ok = ok and (bool(valid[ri, ci]) or wt <= 0.0)
+        out.append(v if ok else np.zeros(data.shape[2:])), good.append(ok)
+    return np.array(out), np.array(good)
+
+
+@pytest.mark.parametrize("shape", [(40, 50), (40, 50, 3), (1, 6), (2, 2)])
+def test_bilinear_paths_give_the_same_values_bit_for_bit(shape):
+    """The flat-index gather, the two-index one (a non-contiguous raster) and the one-point
+    path (the dynamics' terrain) all give the reference values exactly, and the same
+    validity, at edges, in masked pixels, off the grid and at NaN."""
+    from testbench.world.raster import bilinear_at_rowcol, bilinear_point
+
+    rng = np.random.default_rng(4)
+    data = rng.normal(0, 50, shape).astype(np.float32) if len(shape) == 2 else rng.integers(0, 255, shape, dtype=np.uint8)
+    valid = rng.random(shape[:2]) > 0.15
+    row = np.concatenate([rng.uniform(-2, shape[0] + 1, 400), np.arange(-1, shape[0] + 1, 0.5), [np.nan, 0.0]])
+    col = np.concatenate([rng.uniform(-2, shape[1] + 1, 400), np.linspace(-1, shape[1] + 1, 2 * shape[0] + 4), [1.0, np.nan]])
+    ref, ref_ok = _reference_bilinear(data, valid, row, col)
+    assert ref_ok.any() and not ref_ok.all()
+    for d in (data, np.asfortranarray(data)):
+        v, ok = bilinear_at_rowcol(d, valid, row, col)
+        assert v.dtype == np.float64 and np.array_equal(ok, ref_ok) and np.array_equal(v, ref)
+    if len(shape) == 2:
+        for r, c, want, want_ok in zip(row, col, ref, ref_ok):
+            got, got_ok = bilinear_point(data, valid, float(r), float(c))
+            assert got_ok == want_ok and got == want, (r, c)
+
+
+def test_height_at_is_height_m_at_one_point(tmp_path, origin):
+    """ElevationModel.height_at (one point, the dynamics' per-step terrain) gives height_m's
+    value exactly: across tiles, in nodata, off the DEM and at a non-finite point."""
+    f = LocalFrame(origin, "EPSG:4326")
+    lon, lat = f.ne_to_lonlat_deg(0.0, 0.0)
+    res = 1e-5  # about 1 m: 600 x 500 pixels span several 256-pixel tiles
+    rng = np.random.default_rng(2)
+    z = (600.0 + 40.0 * rng.random((500, 600))).astype(np.float32)
+    z[100:140, 200:260] = -32767
+    p = write_tif(tmp_path / "dem.tif", z, "EPSG:4326",
+                  from_origin(float(lon) - 300 * res, float(lat) + 250 * res, res, res), nodata=-32767)
+    dem = ElevationModel(p, origin, outside_height_m=-5.0)
+    n, e = rng.uniform(-400, 400, 600), rng.uniform(-450, 450, 600)
+    want, ok = dem.height_and_valid(n, e)
+    assert ok.any() and not ok.all()
+    got = [dem.height_at(a, b) for a, b in zip(n, e)]
+    assert all(type(g) is float for g in got) and np.array_equal(got, want)
+    assert dem.height_at(math.nan, 0.0) == -5.0 and dem.height_at(0.0, math.inf) == -5.0
+    assert FlatElevation(3.0).height_at(1.0, 2.0) == 3.0
