@@ -256,10 +256,7 @@ class RunWorld:
         elev = self.elevation()
         if elev is None:
             return None
-        at = getattr(elev, "height_at", None)
-        if at is not None:
-            return at
-        return lambda n, e: float(elev.height_m(np.array([n]), np.array([e]))[0])
+        return elev.height_at
 
     def terrain_height_m(self, north_m, east_m):
         """Vectorised terrain height above the origin altitude (m); zeros on flat ground."""

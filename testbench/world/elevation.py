@@ -118,12 +118,12 @@ class ElevationModel:
         size = _TILE_PX * self.native_gsd_m
         ti = np.floor(-n / size).astype(np.int64)
         tj = np.floor(e / size).astype(np.int64)
-        out = np.full(n.shape, self.outside_height_m)
-        ok = np.zeros(n.shape, bool)
         if n.size and (ti == ti.flat[0]).all() and (tj == tj.flat[0]).all():
             # All in one tile (a sensor's footprint, a beam): no sort into tiles.
             v, good = sample_bilinear(self._tile((int(ti.flat[0]), int(tj.flat[0]))), n, e)
             return np.where(good, v, self.outside_height_m), good
+        out = np.full(n.shape, self.outside_height_m)
+        ok = np.zeros(n.shape, bool)
         keys = np.stack([ti.ravel(), tj.ravel()], axis=1)
         uniq, inv = np.unique(keys, axis=0, return_inverse=True)
         inv = inv.reshape(n.shape)

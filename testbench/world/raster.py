@@ -81,26 +81,15 @@ def bilinear_at_rowcol(data: np.ndarray, valid: np.ndarray, row, col):
     c0 = np.clip(np.floor(cs).astype(np.int64), 0, max(w - 2, 0))
     fr = rs - r0
     fc = cs - c0
-    extra = (...,) + (None,) * (data.ndim - 2)
+    r1 = np.minimum(r0 + 1, h - 1)
+    c1 = np.minimum(c0 + 1, w - 1)
+    extra = (None,) * (data.ndim - 2)
     out = np.zeros(row.shape + data.shape[2:])
     ok = inside.copy()
-    if data.flags.c_contiguous and valid.flags.c_contiguous:
-        # Gathers by flat index (np.take) cost about half of two-index fancy indexing; the
-        # arithmetic below is the same either way, so the values are too, bit for bit.
-        i00 = r0 * w + c0
-        dc = np.minimum(c0 + 1, w - 1) - c0
-        dr = (np.minimum(r0 + 1, h - 1) - r0) * w
-        flat, vflat = data.reshape((h * w,) + data.shape[2:]), valid.reshape(-1)
-        corners = [(i00,), (i00 + dc,), (i00 + dr,), (i00 + dr + dc,)]
-    else:
-        r1 = np.minimum(r0 + 1, h - 1)
-        c1 = np.minimum(c0 + 1, w - 1)
-        flat, vflat = data, valid
-        corners = [(r0, c0), (r0, c1), (r1, c0), (r1, c1)]
-    weights = ((1 - fr) * (1 - fc), (1 - fr) * fc, fr * (1 - fc), fr * fc)
-    for wt, idx in zip(weights, corners):
-        out += flat[idx].astype(np.float64) * wt[extra]
-        ok &= vflat[idx] | (wt <= 0.0)
+    for wt, ri, ci in (((1 - fr) * (1 - fc), r0, c0), ((1 - fr) * fc, r0, c1),
+                       (fr * (1 - fc), r1, c0), (fr * fc, r1, c1)):
+        out += data[ri, ci].astype(np.float64) * wt[(...,) + extra]
+        ok &= valid[ri, ci] | (wt <= 0.0)
     out[~ok] = 0.0
     return out, ok
 

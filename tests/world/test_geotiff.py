@@ -185,9 +185,9 @@ def _reference_bilinear(data, valid, row, col):
 
 @pytest.mark.parametrize("shape", [(40, 50), (40, 50, 3), (1, 6), (2, 2)])
 def test_bilinear_paths_give_the_same_values_bit_for_bit(shape):
-    """The flat-index gather, the two-index one (a non-contiguous raster) and the one-point
-    path (the dynamics' terrain) all give the reference values exactly, and the same
-    validity, at edges, in masked pixels, off the grid and at NaN."""
+    """bilinear_at_rowcol (on C- and Fortran-ordered data) and the one-point path (the
+    dynamics' terrain) give the reference values exactly, and the same validity, at edges, in
+    masked pixels, off the grid and at NaN."""
     from testbench.world.raster import bilinear_at_rowcol, bilinear_point
 
     rng = np.random.default_rng(4)
