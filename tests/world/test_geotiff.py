@@ -170,7 +170,8 @@ def _reference_bilinear(data, valid, row, col):
     out, good = [], []
     for r, c in zip(np.ravel(row), np.ravel(col)):
         if not (0 <= r <= h - 1 and 0 <= c <= w - 1):
-            out.append(np.zeros(data.shape[2:])), good.append(False)
+            out.append(np.zeros(data.shape[2:]))
+            good.append(False)
             continue
         r0, c0 = min(int(math.floor(r)), max(h - 2, 0)), min(int(math.floor(c)), max(w - 2, 0))
         fr, fc = r - r0, c - c0
@@ -179,7 +180,8 @@ def _reference_bilinear(data, valid, row, col):
                            (fr * (1 - fc), min(r0 + 1, h - 1), c0), (fr * fc, min(r0 + 1, h - 1), min(c0 + 1, w - 1))):
             v = v + data[ri, ci].astype(np.float64) * wt
             ok = ok and (bool(valid[ri, ci]) or wt <= 0.0)
-        out.append(v if ok else np.zeros(data.shape[2:])), good.append(ok)
+        out.append(v if ok else np.zeros(data.shape[2:]))
+        good.append(ok)
     return np.array(out), np.array(good)
 
 
