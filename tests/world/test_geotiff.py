@@ -4,7 +4,6 @@ conventions, nodata masks, window reads vs full reads, error messages."""
 import math
 
 import numpy as np
-import pyproj
 import pytest
 from rasterio.transform import from_origin
 
