@@ -17,7 +17,7 @@ from rasterio.enums import Resampling
 from testbench.core.errors import InputError
 from testbench.core.interfaces import GeodeticOrigin
 from testbench.world.geotiff import GeoRasterReader
-from testbench.world.raster import LocalRaster, bilinear_point, sample_bilinear
+from testbench.world.raster import LocalRaster, sample_bilinear, sample_bilinear_point
 
 _TILE_PX = 256
 
@@ -146,8 +146,7 @@ class ElevationModel:
         if not (math.isfinite(n) and math.isfinite(e)):
             return self.outside_height_m
         size = _TILE_PX * self.native_gsd_m
-        t = self._tile((math.floor(-n / size), math.floor(e / size)))
-        v, good = bilinear_point(t.data, t.valid, (t.north0_m - n) / t.gsd_m - 0.5, (e - t.east0_m) / t.gsd_m - 0.5)
+        v, good = sample_bilinear_point(self._tile((math.floor(-n / size), math.floor(e / size))), n, e)
         return v if good else self.outside_height_m
 
     def close(self) -> None:

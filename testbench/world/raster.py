@@ -67,6 +67,14 @@ def sample_bilinear(raster: LocalRaster, north_m, east_m):
     return bilinear_at_rowcol(raster.data, raster.valid, row, col)
 
 
+def sample_bilinear_point(raster: LocalRaster, north_m: float, east_m: float) -> tuple[float, bool]:
+    """sample_bilinear at one local (north_m, east_m) point, in plain floats (bilinear_point):
+    the same (value, valid), bit for bit."""
+    row = (raster.north0_m - north_m) / raster.gsd_m - 0.5  # ne_to_rowcol's formula, on floats
+    col = (east_m - raster.east0_m) / raster.gsd_m - 0.5
+    return bilinear_point(raster.data, raster.valid, row, col)
+
+
 def bilinear_at_rowcol(data: np.ndarray, valid: np.ndarray, row, col):
     """Bilinear interpolation of data (H, W[, C]) at continuous (row, col), centres at integers.
 
