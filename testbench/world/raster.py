@@ -80,25 +80,42 @@ def bilinear_at_rowcol(data: np.ndarray, valid: np.ndarray, row, col):
 
     Returns (values float64 (...[, C]), valid bool (...)) as sample_bilinear does.
     """
-    row, col = np.broadcast_arrays(np.asarray(row, float), np.asarray(col, float))
+    row, col = np.asarray(row, float), np.asarray(col, float)
+    if row.shape != col.shape:
+        row, col = np.broadcast_arrays(row, col)
     h, w = data.shape[:2]
     inside = (row >= 0) & (col >= 0) & (row <= h - 1) & (col <= w - 1)
-    rs = np.where(inside, row, 0.0)
-    cs = np.where(inside, col, 0.0)
-    r0 = np.clip(np.floor(rs).astype(np.int64), 0, max(h - 2, 0))
-    c0 = np.clip(np.floor(cs).astype(np.int64), 0, max(w - 2, 0))
+    everywhere = bool(inside.all())
+    rs = row if everywhere else np.where(inside, row, 0.0)
+    cs = col if everywhere else np.where(inside, col, 0.0)
+    # rs, cs >= 0, so the floor needs no lower clip; the upper one keeps the second row and
+    # column on the grid (the last one is reached at weight 1 from the one before it).
+    r0 = np.minimum(np.floor(rs), max(h - 2, 0))
+    c0 = np.minimum(np.floor(cs), max(w - 2, 0))
     fr = rs - r0
     fc = cs - c0
-    r1 = np.minimum(r0 + 1, h - 1)
-    c1 = np.minimum(c0 + 1, w - 1)
+    gr = 1 - fr
+    gc = 1 - fc
+    # One flat index per point and gathers along the flattened grid (np.take): the same pixels
+    # as data[r, c], at about a third of the cost of two-index fancy indexing (the terrain-aided
+    # navigation's ray march asks for 60 000 points and more at a time).
+    step_r, step_c = (w if h > 1 else 0), (1 if w > 1 else 0)  # a one-pixel axis has no neighbour
+    i00 = r0.astype(np.int64)
+    i00 *= w
+    i00 += c0.astype(np.int64)
+    corners = ((gr * gc, i00), (gr * fc, i00 + step_c), (fr * gc, i00 + step_r), (fr * fc, i00 + (step_r + step_c)))
+    flat = np.ascontiguousarray(data).reshape((h * w,) + data.shape[2:])
     extra = (None,) * (data.ndim - 2)
     out = np.zeros(row.shape + data.shape[2:])
+    for wt, idx in corners:
+        out += flat.take(idx, axis=0).astype(np.float64) * wt[(...,) + extra]
     ok = inside.copy()
-    for wt, ri, ci in (((1 - fr) * (1 - fc), r0, c0), ((1 - fr) * fc, r0, c1),
-                       (fr * (1 - fc), r1, c0), (fr * fc, r1, c1)):
-        out += data[ri, ci].astype(np.float64) * wt[(...,) + extra]
-        ok &= valid[ri, ci] | (wt <= 0.0)
-    out[~ok] = 0.0
+    if not valid.all():  # a grid without gaps (a DEM window, most images) needs no lookups
+        valid_flat = np.ascontiguousarray(valid).reshape(-1)
+        for wt, idx in corners:
+            ok &= valid_flat.take(idx) | (wt <= 0.0)
+    if not ok.all():
+        out[~ok] = 0.0
     return out, ok
 
 

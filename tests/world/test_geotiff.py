@@ -184,23 +184,33 @@ def _reference_bilinear(data, valid, row, col):
     return np.array(out), np.array(good)
 
 
+@pytest.mark.parametrize("gaps", [True, False], ids=["masked pixels", "no gaps"])
 @pytest.mark.parametrize("shape", [(40, 50), (40, 50, 3), (1, 6), (2, 2)])
-def test_bilinear_paths_give_the_same_values_bit_for_bit(shape):
+def test_bilinear_paths_give_the_same_values_bit_for_bit(shape, gaps):
     """bilinear_at_rowcol (on C- and Fortran-ordered data) and the one-point path (the
-    dynamics' terrain) give the reference values exactly, and the same validity, at edges, in
-    masked pixels, off the grid and at NaN."""
+    dynamics' terrain) give the reference values exactly (the same bits, the sign of a zero
+    included), and the same validity, at edges, in masked pixels, off the grid and at NaN; and
+    on points all inside the grid (where the vectorised path skips its off-grid handling)."""
     from testbench.world.raster import bilinear_at_rowcol, bilinear_point
 
     rng = np.random.default_rng(4)
     data = rng.normal(0, 50, shape).astype(np.float32) if len(shape) == 2 else rng.integers(0, 255, shape, dtype=np.uint8)
-    valid = rng.random(shape[:2]) > 0.15
+    valid = rng.random(shape[:2]) > 0.15 if gaps else np.ones(shape[:2], bool)
     row = np.concatenate([rng.uniform(-2, shape[0] + 1, 400), np.arange(-1, shape[0] + 1, 0.5), [np.nan, 0.0]])
     col = np.concatenate([rng.uniform(-2, shape[1] + 1, 400), np.linspace(-1, shape[1] + 1, 2 * shape[0] + 4), [1.0, np.nan]])
     ref, ref_ok = _reference_bilinear(data, valid, row, col)
     assert ref_ok.any() and not ref_ok.all()
+    inside = np.flatnonzero((row >= 0) & (col >= 0) & (row <= shape[0] - 1) & (col <= shape[1] - 1))
     for d in (data, np.asfortranarray(data)):
-        v, ok = bilinear_at_rowcol(d, valid, row, col)
-        assert v.dtype == np.float64 and np.array_equal(ok, ref_ok) and np.array_equal(v, ref)
+        for sel in (slice(None), inside):
+            v, ok = bilinear_at_rowcol(d, valid, row[sel], col[sel])
+            assert v.dtype == np.float64 and np.array_equal(ok, ref_ok[sel])
+            assert np.array_equal(v.view(np.int64), ref[sel].view(np.int64))
+    # Broadcast (row, col) keep their grid's shape.
+    v, ok = bilinear_at_rowcol(data, valid, row[:7, None], col[None, :5])
+    want, want_ok = _reference_bilinear(data, valid, *np.broadcast_arrays(row[:7, None], col[None, :5]))
+    assert v.shape == (7, 5) + shape[2:] and np.array_equal(v.reshape(want.shape), want)
+    assert np.array_equal(ok.ravel(), want_ok)
     if len(shape) == 2:
         for r, c, want, want_ok in zip(row, col, ref, ref_ok):
             got, got_ok = bilinear_point(data, valid, float(r), float(c))
