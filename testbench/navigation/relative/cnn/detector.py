@@ -49,7 +49,15 @@ class CnnDetector(Detector):
     Params: weights: path of a weights file (None: the packaged weights.pt); score_min:
     heatmap threshold; nms_iou / nms_centre_px: suppression of duplicates (IoU above, or
     centres closer than); tile_px / tile_overlap_px: full-frame tiling; threads: torch CPU
-    threads (None: leave torch's setting); device: only "cpu" is supported.
+    threads, process-wide (None: leave torch's setting, one per core); device: only "cpu" is
+    supported.
+
+    One thread by default: the regions a run asks for (96-544 px) are too small for torch's
+    intra-op threads to pay. On a 2-core machine (F, 2026-12-03, 8 interleaved rounds) a
+    256 px region took a median 28.5 ms on one thread and 30.2 ms on two, and the second
+    thread spins on the core that a --processes worker, a Monte Carlo worker or another test
+    wants (swarm_cnn, 2 s: 74 s of CPU on two threads, 47 s on one, for the same record bit
+    for bit). The batch workers already run with OMP_NUM_THREADS=1 for the same reason.
 
     `model` is the TinyCenterNet as loaded (or given); detection runs an inference copy of it
     made at construction (cnn.model.inference_copy), so later changes to `model` are not seen.
@@ -62,7 +70,7 @@ class CnnDetector(Detector):
         nms_centre_px: float = pydantic.Field(4.0, ge=0.0)
         tile_px: int = pydantic.Field(544, ge=64)
         tile_overlap_px: int = pydantic.Field(32, ge=0)
-        threads: int | None = pydantic.Field(None, ge=1)
+        threads: int | None = pydantic.Field(1, ge=1)
         device: str = "cpu"
 
         @pydantic.field_validator("device")

@@ -96,6 +96,20 @@ def test_packaged_weights_load():
     assert det.detect(np.zeros((64, 64, 3), np.uint8)) == []
 
 
+def test_detector_runs_torch_on_one_thread_unless_told():
+    """The regions are too small for intra-op threads (CnnDetector's docstring): one thread by
+    default, the scenario's `threads` when given."""
+    before = torch.get_num_threads()
+    try:
+        torch.set_num_threads(2)
+        CnnDetector()
+        assert torch.get_num_threads() == 1
+        CnnDetector(CnnDetector.Params(threads=2))
+        assert torch.get_num_threads() == 2
+    finally:
+        torch.set_num_threads(before)
+
+
 def test_dataset_deterministic():
     s = dataset.DataSettings(crop_px=48, worlds=SMALL.worlds, world_size_km=2.0, world_gsd_m=2.0)
     a, b = dataset.make_samples(6, 5, s), dataset.make_samples(6, 5, s)
