@@ -97,8 +97,8 @@ def bilinear_at_rowcol(data: np.ndarray, valid: np.ndarray, row, col):
     gr = 1 - fr
     gc = 1 - fc
     # One flat index per point and gathers along the flattened grid (np.take): the same pixels
-    # as data[r, c], at about a third of the cost of two-index fancy indexing (the terrain-aided
-    # navigation's ray march asks for 60 000 points and more at a time).
+    # as data[r, c] for less than two-index fancy indexing costs (with the lookups skipped
+    # below, 1.5-2.7x on the terrain-aided navigation's 2 000-250 000 points a call).
     step_r, step_c = (w if h > 1 else 0), (1 if w > 1 else 0)  # a one-pixel axis has no neighbour
     i00 = r0.astype(np.int64)
     i00 *= w
@@ -109,7 +109,7 @@ def bilinear_at_rowcol(data: np.ndarray, valid: np.ndarray, row, col):
     out = np.zeros(row.shape + data.shape[2:])
     for wt, idx in corners:
         out += flat.take(idx, axis=0).astype(np.float64) * wt[(...,) + extra]
-    ok = inside.copy()
+    ok = inside  # (inside is not used again: no copy)
     if not valid.all():  # a grid without gaps (a DEM window, most images) needs no lookups
         valid_flat = np.ascontiguousarray(valid).reshape(-1)
         for wt, idx in corners:

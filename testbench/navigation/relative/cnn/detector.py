@@ -53,11 +53,11 @@ class CnnDetector(Detector):
     supported.
 
     One thread by default: the regions a run asks for (96-544 px) are too small for torch's
-    intra-op threads to pay. On a 2-core machine (F, 2026-12-03, 8 interleaved rounds) a
-    256 px region took a median 28.5 ms on one thread and 30.2 ms on two, and the second
-    thread spins on the core that a --processes worker, a Monte Carlo worker or another test
-    wants (swarm_cnn, 2 s: 74 s of CPU on two threads, 47 s on one, for the same record bit
-    for bit). The batch workers already run with OMP_NUM_THREADS=1 for the same reason.
+    intra-op threads to pay (a 256 px region: a median 28.5 ms on one thread, 30.2 ms on two),
+    and a second thread spins on the core that a --processes worker, a batch worker (which runs
+    with OMP_NUM_THREADS=1 for the same reason) or another test wants: swarm_cnn, 2 s, took 74 s
+    of CPU on two threads and 47 s on one, for the same record bit for bit
+    (docs/measurements.md, "The CNN detector's threads").
 
     `model` is the TinyCenterNet as loaded (or given); detection runs an inference copy of it
     made at construction (cnn.model.inference_copy), so later changes to `model` are not seen.
