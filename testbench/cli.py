@@ -27,6 +27,7 @@ os.environ.setdefault("NUMPY_MADVISE_HUGEPAGE", "0")
 
 from testbench import __version__
 from testbench.core.errors import EXIT_INTERNAL, InputError, TestbenchError
+from testbench.core.heap import keep_freed_memory
 
 # One module per subcommand family (testbench/commands/<name>.py with register(subparsers)).
 COMMAND_MODULES = ("run", "report", "make_map", "aircraft", "sensors", "locate", "ismn", "montecarlo", "compare", "bench", "detector")
@@ -49,6 +50,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    keep_freed_memory()  # glibc: no fresh pages for every large temporary (core/heap.py)
     parser = build_parser()
     args = parser.parse_args(argv)
     level = logging.WARNING if args.verbose == 0 else logging.INFO if args.verbose == 1 else logging.DEBUG

@@ -20,6 +20,8 @@ from typing import Any
 
 import numpy as np
 
+from testbench.core.heap import keep_freed_memory
+
 log = logging.getLogger(__name__)
 
 # What one worker process keeps between its runs (testbench.world.memo): a 7 km world at
@@ -31,6 +33,7 @@ def execute_run(scenario: str, run_dir: str, index: int, entropy: int, spawn_key
     """Run one scenario instance; returns its result row (also saved as run_dir/result.json)."""
     # Each worker uses one core: libraries below must not start their own thread pools.
     os.environ.setdefault("OMP_NUM_THREADS", "1")
+    keep_freed_memory()  # a Dask worker does not come through the CLI (core/heap.py)
     t0 = time.perf_counter()
     row: dict[str, Any] = {"run": index, "seed_entropy": str(entropy), "seed_spawn_key": json.dumps(list(spawn_key))}
     row.update({f"vary.{k}": v for k, v in varied.items()})
