@@ -16,8 +16,8 @@ threshold at its 128 kB start (glibc stops adapting it once either is set).
 
 The cost is memory the process keeps: up to TRIM_THRESHOLD_BYTES of freed heap that the kernel
 could otherwise have had back (the peaks measured moved by 1-6 %). A threshold the user set in
-the environment (MALLOC_MMAP_THRESHOLD_, MALLOC_TRIM_THRESHOLD_, or glibc.malloc tunables in GLIBC_TUNABLES) is left as
-they set it.
+the environment (MALLOC_MMAP_THRESHOLD_, MALLOC_TRIM_THRESHOLD_, or glibc.malloc tunables in
+GLIBC_TUNABLES) is left as they set it.
 """
 
 from __future__ import annotations
