@@ -4,6 +4,7 @@ the real command line (in-process) and ends with a known exit status."""
 import json
 from pathlib import Path
 
+import pyarrow.parquet as pq
 import pytest
 
 from testbench.cli import main
@@ -11,9 +12,11 @@ from tests.conftest import use_data_if_scenario_needs_it
 
 REPO = Path(__file__).resolve().parents[2]
 SCENARIOS = sorted((REPO / "scenarios").glob("*.yaml"))
-# The CNN swarm runs its detector on 30 cameras at 10 Hz (~35 ms a region on one core): 2 s
-# of flight already runs every stage of it; 6 s would cost minutes of CI.
-SMOKE_DURATION_S = {"default": 6.0, "swarm_cnn": 2.0}
+# The swarms render and search 15-30 cameras at 10 Hz (a 6 s LED swarm took 38-50 s of CI, the
+# CNN's ~35 ms a region more): by 1.1-1.3 s of flight every one of them has its first relative
+# estimates and formation rows (2026-12-03), which the test asserts, so 2-3 s runs every stage.
+SMOKE_DURATION_S = {"default": 6.0, "swarm_cnn": 2.0, "paper_swarm_relnav": 3.0, "swarm_fixedwing": 3.0,
+                    "swarm_canyon_nlos": 3.0}
 
 
 @pytest.mark.parametrize("path", SCENARIOS, ids=[p.stem for p in SCENARIOS])
@@ -38,3 +41,6 @@ def test_scenario_smoke(path, tmp_path, monkeypatch):
     relnav = [c["RelnavAid"] for c in run_info["aid_counters"].values() if "RelnavAid" in c]
     if path.stem.startswith(("swarm", "paper_swarm")):
         assert relnav and all(c["frames"] > 0 for c in relnav)
+        # ... and the stages after detection ran: relative estimates, formation slot errors.
+        for table in ("relnav", "formation"):
+            assert pq.read_metadata(out / "events" / f"{table}.parquet").num_rows > 0, table
