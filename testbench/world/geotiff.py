@@ -205,10 +205,20 @@ class GeoRasterReader:
             del bad
         sx, sy = win.width / out_w, win.height / out_h
         # Source centre coordinates -> coordinates in the (decimated) window array.
-        grid_c = GridInterpolator((col_n - c_lo + 0.5) / sx - 0.5, step, height, width)
-        grid_r = GridInterpolator((row_n - r_lo + 0.5) / sy - 0.5, step, height, width)
+        win_c = (col_n - c_lo + 0.5) / sx - 0.5
+        win_r = (row_n - r_lo + 0.5) / sy - 0.5
         out = np.empty((height, width, nb), dtype=dtype)
         valid = np.empty((height, width), bool)
+        # uint8 only: cv2 remaps 8-bit data at coordinates rounded to 1/32 px, but float data at
+        # the exact float coordinates, so a node 3e-6 px off its pixel already moves a height.
+        shift = _integer_shift(win_c, win_r, cc, rr) if np.dtype(dtype) == np.uint8 else None
+        if shift is not None:
+            # The grid is the window's own pixels (a map written on this local grid, read at
+            # its gsd): remap would return them unchanged, so copy them instead.
+            _shifted_copy(src, mask, shift, out, valid)
+            return out, valid
+        grid_c = GridInterpolator(win_c, step, height, width)
+        grid_r = GridInterpolator(win_r, step, height, width)
         # Strip by strip: cv2.remap computes every output pixel from its own map values only,
         # so strips give exactly the pixels of one whole-window remap.
         rows = max(1, _STRIP_PX // width)
@@ -326,6 +336,59 @@ def _remap(src: np.ndarray, map_c: np.ndarray, map_r: np.ndarray, dst: np.ndarra
         return
     for i, plane in enumerate(src):
         dst[..., i] = cv2.remap(plane, map_c, map_r, **kw)
+
+
+# Largest distance (px) of a grid node from a whole-pixel translation for _integer_shift to take
+# it as one. cv2.remap rounds the coordinates of 8-bit data to 1/32 px, so anything within 1/64
+# of a whole pixel reads that pixel alone (weight 1, its neighbour 0); 1e-3 px also leaves room
+# for the float32 rounding (< 0.004 px below 1e5) of the maps the node interpolation makes.
+_SHIFT_TOL_PX = 1e-3
+
+
+def _integer_shift(win_c: np.ndarray, win_r: np.ndarray, cc: np.ndarray, rr: np.ndarray) -> tuple[int, int] | None:
+    """(dc, dr) when the output grid is the window's pixel grid shifted by whole pixels: window
+    column win_c = dc + output column cc and row win_r = dr + output row rr at every node, to
+    _SHIFT_TOL_PX; None otherwise. win_c, win_r: (nr, nc) window coordinates of the nodes at
+    output rows rr (nr,) and columns cc (nc,). Bilinear interpolation between nodes keeps such a
+    translation, so what holds at the nodes holds at every pixel."""
+    dc = float(np.rint(win_c[0, 0] - cc[0]))
+    dr = float(np.rint(win_r[0, 0] - rr[0]))
+    if (np.abs(win_c - (cc[None, :] + dc)).max() > _SHIFT_TOL_PX
+            or np.abs(win_r - (rr[:, None] + dr)).max() > _SHIFT_TOL_PX):
+        return None
+    return int(dc), int(dr)
+
+
+def _shifted_copy(src: np.ndarray, mask: np.ndarray | None, shift: tuple[int, int], out: np.ndarray,
+                  valid: np.ndarray) -> None:
+    """What _remap and the validity of read_grid give on a whole-pixel shift, by copying: out[y, x]
+    = window pixel (y + dr, x + dc) and valid there (mask >= 250 where a mask is given); 0 and
+    invalid off the window (cv2's constant-0 border, the neighbour of weight 0 ignored).
+    src: a _read_window source ((H, W, nb), or (nb, H, W) planes for nb > 4); out (h, w, nb),
+    valid (h, w) filled in place."""
+    dc, dr = shift
+    planes = out.shape[2] > 4  # _read_window's layout for more than 4 bands
+    hs, ws = src.shape[1:] if planes else src.shape[:2]
+    h, w = valid.shape
+    y0, y1 = max(0, -dr), min(h, hs - dr)
+    x0, x1 = max(0, -dc), min(w, ws - dc)
+    out[...] = 0
+    valid[...] = False
+    if y1 <= y0 or x1 <= x0:
+        return
+    rows, cols = slice(y0 + dr, y1 + dr), slice(x0 + dc, x1 + dc)
+    if planes:
+        for i, plane in enumerate(src):
+            out[y0:y1, x0:x1, i] = plane[rows, cols]
+    else:
+        out[y0:y1, x0:x1] = src[rows, cols]
+    if mask is None:
+        valid[y0:y1, x0:x1] = True
+    else:
+        v = valid[y0:y1, x0:x1]
+        np.greater_equal(mask[rows, cols], 250, out=v)
+        if not v.all():
+            out[y0:y1, x0:x1][~v] = 0
 
 
 def _fill(src: np.ndarray, bad: np.ndarray) -> None:

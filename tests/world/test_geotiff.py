@@ -236,3 +236,53 @@ def test_height_at_is_height_m_at_one_point(tmp_path, origin):
     assert all(type(g) is float for g in got) and np.array_equal(got, want)
     assert dem.height_at(math.nan, 0.0) == -5.0 and dem.height_at(0.0, math.inf) == -5.0
     assert FlatElevation(3.0).height_at(1.0, 2.0) == 3.0
+
+
+def _local_grid_tif(tmp_path, origin, bands, kind):
+    """A raster written on the local grid itself (as the procedural worlds are), 1.5 m, 60 x 80
+    px: (path, band list); kind "plain", "masked" (uint8 with an internal mask) or "nodata"
+    (float32 with nodata)."""
+    from testbench.world.procedural.writer import write_geotiff
+
+    rng = np.random.default_rng(3)
+    valid = np.ones((60, 80), bool)
+    if kind != "plain":
+        valid[10:20, 5:30] = False
+        valid[:, 79] = False  # a gap along the east edge
+    if kind == "nodata":
+        arr = rng.normal(400.0, 30.0, (60, 80)).astype(np.float32)
+        write_geotiff(tmp_path / "z.tif", arr, origin, 1.5, valid=valid)
+        return str(tmp_path / "z.tif"), [1]
+    arr = rng.integers(1, 256, (60, 80, bands)).astype(np.uint8)
+    write_geotiff(tmp_path / "m.tif", arr, origin, 1.5, valid=valid if kind == "masked" else None)
+    return str(tmp_path / "m.tif"), list(range(1, bands + 1))
+
+
+@pytest.mark.parametrize("kind,bands", [("plain", 3), ("masked", 3), ("nodata", 1), ("plain", 5)])
+def test_a_read_on_the_maps_own_grid_copies_what_the_remap_gives_bit_for_bit(tmp_path, origin, monkeypatch, kind, bands):
+    """A window on an 8-bit raster's own pixel grid (whole pixels from its corner, at its gsd) is
+    copied, not remapped: the same bits and validity as the remap, inside, over each edge and
+    corner and beyond the map; a grid half a pixel off, or finer, is still remapped, and so is
+    float data (cv2 interpolates it at the exact coordinates, a few 1e-6 px off the pixels)."""
+    import testbench.world.geotiff as geotiff
+
+    path, band_list = _local_grid_tif(tmp_path, origin, bands, kind)
+    reader = geotiff.GeoRasterReader(path, origin, band_list, what="test raster")
+    taken = []
+    shift = geotiff._integer_shift
+    monkeypatch.setattr(geotiff, "_integer_shift", lambda *a: taken.append(shift(*a)) or taken[-1])
+    # (north0_m, east0_m, gsd_m, height, width): the map spans north +-45 m, east +-60 m
+    on_grid = [(30.0, -45.0, 1.5, 20, 30), (45.0, -60.0, 1.5, 60, 80), (52.5, -67.5, 1.5, 75, 100),
+               (-33.0, 51.0, 1.5, 16, 16), (48.0, 30.0, 1.5, 10, 40), (0.0, -90.0, 1.5, 30, 40)]
+    off_grid = [(30.75, -45.0, 1.5, 20, 30), (30.0, -45.0, 0.75, 40, 60)]
+    for box in on_grid + off_grid:
+        taken.clear()
+        fast = reader.read_grid(*box)
+        assert (bool(taken) and taken[0] is not None) == (box in on_grid and kind != "nodata"), box
+        monkeypatch.setattr(geotiff, "_integer_shift", lambda *a: None)
+        slow = reader.read_grid(*box)
+        monkeypatch.setattr(geotiff, "_integer_shift", lambda *a: taken.append(shift(*a)) or taken[-1])
+        assert fast[0].dtype == slow[0].dtype and fast[0].tobytes() == slow[0].tobytes(), box
+        assert np.array_equal(fast[1], slow[1]), box
+        if box in on_grid:
+            assert fast[1].any() and (kind != "plain" or box[3:] != (60, 80) or fast[1].all()), box
