@@ -1,10 +1,14 @@
 """World benchmarks: procedural generation time, window reads from a 10 km x 10 km 1 m map.
 
 run_benchmarks() -> {"world.make_map_6km_1m_s", "world.make_map_6km_1m_cpu_s",
-"world.make_map_6km_1m_peak_rss_mb", "world.read_local_10km_window_ms",
-"world.read_local_10km_coarse_ms", "world.read_local_10km_peak_mb"}.
+"world.make_map_6km_1m_peak_rss_mb", "world.make_map_6km_1m_threaded_s",
+"world.make_map_6km_1m_threads", "world.make_map_6km_1m_threaded_peak_rss_mb",
+"world.read_local_10km_window_ms", "world.read_local_10km_coarse_ms",
+"world.read_local_10km_peak_mb"}.
 make_map is what `testbench make-map --terrain farmland --size-km 6 --gsd-m 1` does (generate
-and write both GeoTIFFs), run in a child process on one core so that its peak RSS is its own.
+and write both GeoTIFFs), run in a child process so that its peak RSS is its own: once on one
+thread, once with the bands painted by generation_threads() threads (the `_threaded` figures;
+the same files).
 Peak memory of the read is the traced (tracemalloc) peak of numpy/Python allocations.
 """
 
@@ -63,14 +67,15 @@ with open(result, "w") as fh:
 """
 
 
-def _make_map(size_km: float, out_dir: str) -> tuple[float, float, float]:
-    """(wall s, CPU s, peak RSS MB) of generating and writing a farmland world, in a child
-    (its own peak memory), which writes them as JSON next to the world."""
+def _make_map(size_km: float, out_dir: str, threads: int = 1) -> tuple[float, float, float]:
+    """(wall s, CPU s, peak RSS MB) of generating and writing a farmland world with its bands
+    painted by `threads` threads, in a child (its own peak memory), which writes them as JSON
+    next to the world."""
     import json
     import subprocess
     import sys
 
-    env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+    env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", TESTBENCH_WORLD_THREADS=str(threads))
     result = os.path.join(out_dir, "make_map_figures.json")
     subprocess.run([sys.executable, "-c", _CHILD, str(size_km), out_dir, result], env=env,
                    capture_output=True, text=True, check=True)
@@ -81,6 +86,7 @@ def _make_map(size_km: float, out_dir: str) -> tuple[float, float, float]:
 
 def run_benchmarks(quick: bool = False) -> dict[str, float]:
     from testbench.world.imagery import MapSource
+    from testbench.world.procedural.bands import generation_threads
 
     out: dict[str, float] = {}
     with tempfile.TemporaryDirectory() as d:
@@ -89,6 +95,11 @@ def run_benchmarks(quick: bool = False) -> dict[str, float]:
         out[f"world.make_map_{size:g}km_1m_s"] = wall
         out[f"world.make_map_{size:g}km_1m_cpu_s"] = cpu
         out[f"world.make_map_{size:g}km_1m_peak_rss_mb"] = rss
+        threads = generation_threads()
+        wall, _, rss = _make_map(size, os.path.join(d, "w6t"), threads)
+        out[f"world.make_map_{size:g}km_1m_threaded_s"] = wall
+        out[f"world.make_map_{size:g}km_1m_threads"] = float(threads)
+        out[f"world.make_map_{size:g}km_1m_threaded_peak_rss_mb"] = rss
         path = os.path.join(d, "big.tif")
         _write_10km_map(path)
         m = MapSource(path, _ORIGIN)

@@ -126,6 +126,30 @@ def test_bands_join_seamlessly(terrain, monkeypatch):
     assert per_row.max() < 3.0 * np.median(per_row) + 2.0
 
 
+@pytest.mark.parametrize("terrain", TERRAINS)
+def test_bands_painted_in_threads_are_the_bands_painted_in_turn(terrain, monkeypatch):
+    """Five bands painted by three threads at once: the same bands, in order, bit for bit."""
+    from testbench.world.procedural import bands
+
+    monkeypatch.setattr(bands, "band_rows", lambda h, w, halo: [(r, min(h, r + 64)) for r in range(0, h, 64)])
+    monkeypatch.setenv("TESTBENCH_WORLD_THREADS", "1")
+    alone = make_world(terrain, 0.9, 3.0, 4, "autumn")
+    monkeypatch.setenv("TESTBENCH_WORLD_THREADS", "3")
+    threaded = make_world(terrain, 0.9, 3.0, 4, "autumn")
+    assert alone[0].tobytes() == threaded[0].tobytes() and alone[1].tobytes() == threaded[1].tobytes()
+
+
+@pytest.mark.parametrize("value", ["0", "two", "-1"])
+def test_world_threads_from_the_environment_are_checked(value, monkeypatch):
+    from testbench.world.procedural.bands import generation_threads
+
+    monkeypatch.setenv("TESTBENCH_WORLD_THREADS", value)
+    with pytest.raises(InputError, match="TESTBENCH_WORLD_THREADS.*whole number of threads >= 1"):
+        generation_threads()
+    monkeypatch.setenv("TESTBENCH_WORLD_THREADS", "2")
+    assert generation_threads() == 2
+
+
 def test_streamed_files_match_make_world(tmp_path, origin):
     import rasterio
 

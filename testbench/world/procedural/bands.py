@@ -11,10 +11,15 @@ The band layout depends only on the world's shape: same inputs, bit-identical ou
 
 from __future__ import annotations
 
+import itertools
+import os
+from collections import deque
+from concurrent.futures import ThreadPoolExecutor
 from typing import Iterator
 
 import numpy as np
 
+from testbench.core.errors import InputError
 from testbench.world.procedural.appearance import Season, grain, tone
 from testbench.world.procedural.noise import CoarseGrid, grid_coords, stream
 
@@ -50,13 +55,53 @@ def band_rows(h: int, w: int, halo: int) -> list[tuple[int, int]]:
     return [(r0, min(h, r0 + step)) for r0 in range(0, h, step)]
 
 
-def generate(gen: Terrain) -> Iterator[tuple[int, np.ndarray, np.ndarray]]:
-    """Yield (r0, rgb uint8 (n, W, 3), z float32 (n, W)) for consecutive bands of `gen`."""
-    h, w = gen.shape
-    for r0, r1 in band_rows(h, w, gen.halo):
-        a, b = r0 - gen.halo, r1 + gen.halo
-        rgb, z = gen.rows(a, b)
-        tone(rgb, gen.season, gen.gsd_m)
-        band = rgb[r0 - a:r1 - a]
-        rng = stream(gen.seed, f"{gen.name}-grain-{gen.season.name}-{r0}")
-        yield r0, grain(band, rng), np.ascontiguousarray(z[r0 - a:r1 - a], dtype=np.float32)
+def _band(gen: Terrain, r0: int, r1: int) -> tuple[int, np.ndarray, np.ndarray]:
+    """(r0, rgb uint8 (r1-r0, W, 3), z float32 (r1-r0, W)) of the band [r0, r1)."""
+    a, b = r0 - gen.halo, r1 + gen.halo
+    rgb, z = gen.rows(a, b)
+    tone(rgb, gen.season, gen.gsd_m)
+    band = rgb[r0 - a:r1 - a]
+    rng = stream(gen.seed, f"{gen.name}-grain-{gen.season.name}-{r0}")
+    return r0, grain(band, rng), np.ascontiguousarray(z[r0 - a:r1 - a], dtype=np.float32)
+
+
+def generation_threads() -> int:
+    """Threads that paint a world's bands: $TESTBENCH_WORLD_THREADS, else the cores this
+    process may run on, at most 4 (each band in flight holds a few hundred MB of float32)."""
+    env = os.environ.get("TESTBENCH_WORLD_THREADS")
+    if env:
+        try:
+            n = int(env)
+        except ValueError:
+            raise InputError(f"TESTBENCH_WORLD_THREADS={env!r}: expected a whole number of threads >= 1") from None
+        if n < 1:
+            raise InputError(f"TESTBENCH_WORLD_THREADS={env!r}: expected a whole number of threads >= 1")
+        return n
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    return max(1, min(4, cores))
+
+
+def generate(gen: Terrain, threads: int | None = None) -> Iterator[tuple[int, np.ndarray, np.ndarray]]:
+    """Yield (r0, rgb uint8 (n, W, 3), z float32 (n, W)) for consecutive bands of `gen`.
+
+    threads (default generation_threads()): bands painted at once. A band's pixels depend only
+    on their position, and numpy and OpenCV release the GIL over whole arrays, so threads give
+    the same bands, in order, sooner; at most threads + 1 bands are held at a time.
+    """
+    bands = band_rows(*gen.shape, gen.halo)
+    n = generation_threads() if threads is None else max(1, int(threads))
+    if n == 1 or len(bands) == 1:
+        for r0, r1 in bands:
+            yield _band(gen, r0, r1)
+        return
+    with ThreadPoolExecutor(max_workers=n, thread_name_prefix="world-band") as pool:
+        pending: deque = deque()
+        todo = iter(bands)
+        for r0, r1 in itertools.islice(todo, n + 1):
+            pending.append(pool.submit(_band, gen, r0, r1))
+        while pending:
+            done = pending.popleft().result()
+            nxt = next(todo, None)
+            if nxt is not None:
+                pending.append(pool.submit(_band, gen, *nxt))
+            yield done

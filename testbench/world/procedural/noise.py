@@ -16,6 +16,7 @@ banded world is seamless. Two kinds:
 
 from __future__ import annotations
 
+import threading
 import zlib
 
 import cv2
@@ -106,15 +107,19 @@ class ValueNoise(_Interp):
         self.gw = gw
         self.key = [int(k) for k in rng.integers(0, 2**32, 2)]
         self._cache: dict[int, np.ndarray] = {}
+        self._lock = threading.Lock()  # bands are painted in threads (bands.generate)
 
     def _block(self, b: int) -> np.ndarray:
-        blk = self._cache.get(b)
+        with self._lock:
+            blk = self._cache.get(b)
         if blk is None:
+            # Drawn outside the lock: a block is the same whichever thread draws it first.
             g = np.random.default_rng(self.key + [b & 0xFFFFFFFF])
             blk = g.random((_BLOCK, self.gw), dtype=np.float32)
-            if len(self._cache) > 8:
-                self._cache.pop(next(iter(self._cache)))
-            self._cache[b] = blk
+            with self._lock:
+                if len(self._cache) > 8:
+                    self._cache.pop(next(iter(self._cache)))
+                self._cache[b] = blk
         return blk
 
     def _src(self, lo, hi):
