@@ -139,6 +139,23 @@ def test_bands_painted_in_threads_are_the_bands_painted_in_turn(terrain, monkeyp
     assert alone[0].tobytes() == threaded[0].tobytes() and alone[1].tobytes() == threaded[1].tobytes()
 
 
+def test_a_caller_that_stops_early_stops_the_painting(monkeypatch):
+    """Bands are painted only a few ahead of the caller, and not after it stops."""
+    from testbench.world.procedural import bands
+    from testbench.world.procedural.appearance import season_from
+    from testbench.world.procedural.natural import Desert
+
+    monkeypatch.setattr(bands, "band_rows", lambda h, w, halo: [(r, min(h, r + 16)) for r in range(0, h, 16)])
+    gen = Desert(1, (320, 320), 3.0, season_from("summer"))  # 20 bands
+    painted = []
+    rows = gen.rows
+    monkeypatch.setattr(gen, "rows", lambda a, b: painted.append(a) or rows(a, b))
+    it = bands.generate(gen, threads=2)
+    next(it)
+    it.close()
+    assert 2 <= len(painted) <= 4  # the first, and at most the two painted meanwhile and one more
+
+
 @pytest.mark.parametrize("value", ["0", "two", "-1"])
 def test_world_threads_from_the_environment_are_checked(value, monkeypatch):
     from testbench.world.procedural.bands import generation_threads

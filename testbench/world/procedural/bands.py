@@ -95,13 +95,15 @@ def generate(gen: Terrain, threads: int | None = None) -> Iterator[tuple[int, np
             yield _band(gen, r0, r1)
         return
     with ThreadPoolExecutor(max_workers=n, thread_name_prefix="world-band") as pool:
-        pending: deque = deque()
         todo = iter(bands)
-        for r0, r1 in itertools.islice(todo, n + 1):
-            pending.append(pool.submit(_band, gen, r0, r1))
-        while pending:
-            done = pending.popleft().result()
-            nxt = next(todo, None)
-            if nxt is not None:
-                pending.append(pool.submit(_band, gen, *nxt))
-            yield done
+        pending = deque(pool.submit(_band, gen, r0, r1) for r0, r1 in itertools.islice(todo, n))
+        try:
+            while pending:
+                done = pending.popleft().result()
+                nxt = next(todo, None)
+                if nxt is not None:
+                    pending.append(pool.submit(_band, gen, *nxt))
+                yield done  # n bands in the threads meanwhile, this one with the caller
+        finally:  # the caller stopped early (an error writing): do not paint the rest
+            for f in pending:
+                f.cancel()
