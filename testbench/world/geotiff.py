@@ -207,16 +207,15 @@ class GeoRasterReader:
         # Source centre coordinates -> coordinates in the (decimated) window array.
         win_c = (col_n - c_lo + 0.5) / sx - 0.5
         win_r = (row_n - r_lo + 0.5) / sy - 0.5
-        out = np.empty((height, width, nb), dtype=dtype)
-        valid = np.empty((height, width), bool)
         # uint8 only: cv2 remaps 8-bit data at coordinates rounded to 1/32 px, but float data at
         # the exact float coordinates, so a node 3e-6 px off its pixel already moves a height.
         shift = _integer_shift(win_c, win_r, cc, rr) if np.dtype(dtype) == np.uint8 else None
         if shift is not None:
             # The grid is the window's own pixels (a map written on this local grid, read at
             # its gsd): remap would return them unchanged, so copy them instead.
-            _shifted_copy(src, mask, shift, out, valid)
-            return out, valid
+            return _shifted_copy(src, mask, shift, (height, width, nb))
+        out = np.empty((height, width, nb), dtype=dtype)
+        valid = np.empty((height, width), bool)
         grid_c = GridInterpolator(win_c, step, height, width)
         grid_r = GridInterpolator(win_r, step, height, width)
         # Strip by strip: cv2.remap computes every output pixel from its own map values only,
@@ -359,23 +358,24 @@ def _integer_shift(win_c: np.ndarray, win_r: np.ndarray, cc: np.ndarray, rr: np.
     return int(dc), int(dr)
 
 
-def _shifted_copy(src: np.ndarray, mask: np.ndarray | None, shift: tuple[int, int], out: np.ndarray,
-                  valid: np.ndarray) -> None:
-    """What _remap and the validity of read_grid give on a whole-pixel shift, by copying: out[y, x]
-    = window pixel (y + dr, x + dc) and valid there (mask >= 250 where a mask is given); 0 and
-    invalid off the window (cv2's constant-0 border, the neighbour of weight 0 ignored).
-    src: a _read_window source ((H, W, nb), or (nb, H, W) planes for nb > 4); out (h, w, nb),
-    valid (h, w) filled in place."""
+def _shifted_copy(src: np.ndarray, mask: np.ndarray | None, shift: tuple[int, int],
+                  shape: tuple[int, int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """What _remap and the validity of read_grid give on a whole-pixel shift, by copying: (out
+    (h, w, nb) in src's dtype, valid (h, w) bool) for shape (h, w, nb), out[y, x] = window pixel
+    (y + dr, x + dc) and valid there (mask >= 250 where a mask is given); 0 and invalid off the
+    window (cv2's constant-0 border, the neighbour of weight 0 ignored). src: a _read_window
+    source ((H, W, nb), or (nb, H, W) planes for nb > 4)."""
     dc, dr = shift
-    planes = out.shape[2] > 4  # _read_window's layout for more than 4 bands
+    h, w, nb = shape
+    planes = nb > 4  # _read_window's layout for more than 4 bands
     hs, ws = src.shape[1:] if planes else src.shape[:2]
-    h, w = valid.shape
+    # Zeroed pages from the allocator: only the copied rectangle is written.
+    out = np.zeros(shape, src.dtype)
+    valid = np.zeros((h, w), bool)
     y0, y1 = max(0, -dr), min(h, hs - dr)
     x0, x1 = max(0, -dc), min(w, ws - dc)
-    out[...] = 0
-    valid[...] = False
     if y1 <= y0 or x1 <= x0:
-        return
+        return out, valid
     rows, cols = slice(y0 + dr, y1 + dr), slice(x0 + dc, x1 + dc)
     if planes:
         for i, plane in enumerate(src):
@@ -389,6 +389,7 @@ def _shifted_copy(src: np.ndarray, mask: np.ndarray | None, shift: tuple[int, in
         np.greater_equal(mask[rows, cols], 250, out=v)
         if not v.all():
             out[y0:y1, x0:x1][~v] = 0
+    return out, valid
 
 
 def _fill(src: np.ndarray, bad: np.ndarray) -> None:
