@@ -312,13 +312,16 @@ def tile_consensus(t: TileMatches, consensus_px: float = 3.0, inlier_px: float =
             return H, kind, _apply(H, t.ortho_px)
         return None, "translation", t.ortho_px + np.average(d[inl], axis=0, weights=w[inl])
 
+    # Up to three rounds of inliers <- tiles near the model of the inliers; the model is fitted
+    # again only when the inliers changed (it is a function of them alone: a round that keeps
+    # them would refit the same four weighted fits for the same result).
+    H, kind, pred = model(inl)
     for _ in range(3):
-        H, kind, pred = model(inl)
         new = np.hypot(*(t.map_px - pred).T) < (inlier_px if H is not None else consensus_px)
         if new.sum() < 2 or (new == inl).all():
             break
         inl = new
-    H, kind, pred = model(inl)
+        H, kind, pred = model(inl)
     k = int(inl.sum())
     resid = (t.map_px - pred)[inl]
     dof = 2 * k - {"homography": 8, "affine": 6, "translation": 2}[kind]
