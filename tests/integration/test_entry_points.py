@@ -11,19 +11,18 @@ import pytest
 REPO = Path(__file__).resolve().parents[2]
 
 
-def _entry_points():
-    points = {"cli.py": [sys.executable, str(REPO / "cli.py")], "python -m": [sys.executable, "-m", "testbench"]}
+def _entry_points() -> dict[str, list[str]]:
+    """name -> command line of each entry point, the console script beside this interpreter's."""
     script = Path(sys.executable).with_name("testbench")
-    script = script if script.exists() else shutil.which("testbench")
-    if script:
-        points["console script"] = [str(script)]
-    return points
+    script = str(script) if script.exists() else shutil.which("testbench")
+    assert script, "the `testbench` console script is not installed (pip install -e .)"
+    return {"console script": [script], "cli.py": [sys.executable, str(REPO / "cli.py")],
+            "python -m": [sys.executable, "-m", "testbench"]}
 
 
 @pytest.mark.parametrize("args, status", [(["--version"], 0), (["run", "no/such/scenario.yaml"], 2)])
 def test_every_entry_point_gives_the_same_output_and_status(args, status, tmp_path):
     points = _entry_points()
-    assert "console script" in points, "the `testbench` console script is not installed (pip install -e .)"
     results = {name: subprocess.run(cmd + args, capture_output=True, text=True, cwd=tmp_path, timeout=120)
                for name, cmd in points.items()}
     for name, proc in results.items():
