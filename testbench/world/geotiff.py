@@ -195,14 +195,6 @@ class GeoRasterReader:
         if max(out_h, out_w) > _MAX_CV_SIZE:
             raise InputError(f"{self.what} '{self.path}': window too large for one read; "
                              "use a coarser gsd_m or a smaller window")
-        src, mask = self._read_window(win, out_h, out_w, dtype)
-        if mask is not None:
-            bad = mask == 0
-            if bad.any() and not bad.all():
-                # Fill nodata with the window mean so that it cannot leak into valid pixels
-                # through bilinear weights (-32767 times a tiny weight is still a cliff).
-                _fill(src, bad)
-            del bad
         sx, sy = win.width / out_w, win.height / out_h
         # Source centre coordinates -> coordinates in the (decimated) window array.
         win_c = (col_n - c_lo + 0.5) / sx - 0.5
@@ -210,10 +202,19 @@ class GeoRasterReader:
         # uint8 only: cv2 remaps 8-bit data at coordinates rounded to 1/32 px, but float data at
         # the exact float coordinates, so a node 3e-6 px off its pixel already moves a height.
         shift = _integer_shift(win_c, win_r, cc, rr) if np.dtype(dtype) == np.uint8 else None
+        src, mask = self._read_window(win, out_h, out_w, dtype)
         if shift is not None:
             # The grid is the window's own pixels (a map written on this local grid, read at
-            # its gsd): remap would return them unchanged, so copy them instead.
+            # its gsd): remap would return them unchanged, so copy them instead (nodata needs
+            # no fill there: the copy zeroes what the mask marks invalid).
             return _shifted_copy(src, mask, shift, (height, width, nb))
+        if mask is not None:
+            bad = mask == 0
+            if bad.any() and not bad.all():
+                # Fill nodata with the window mean so that it cannot leak into valid pixels
+                # through bilinear weights (-32767 times a tiny weight is still a cliff).
+                _fill(src, bad)
+            del bad
         out = np.empty((height, width, nb), dtype=dtype)
         valid = np.empty((height, width), bool)
         grid_c = GridInterpolator(win_c, step, height, width)
