@@ -182,6 +182,15 @@ def expand_env(node: Any, where: str, path: str = "") -> Any:
     return node
 
 
+def _is_map_path(key: str, value: Any) -> bool:
+    """True when world.<key>'s value names a file: not a `procedural:` world, and for the
+    elevation keys not flat ground ('flat' or 'flat:HEIGHT_M', world.spec.open_elevation)."""
+    if not isinstance(value, str) or not value or value.strip().startswith("procedural:"):
+        return False
+    flat = value.strip().lower()
+    return not (key.endswith("elevation") and (flat == "flat" or flat.startswith("flat:")))
+
+
 def _resolve_map_paths(data: dict[str, Any], base: Path) -> None:
     """Make world map paths absolute, relative to the scenario's folder."""
     world = data.get("world")
@@ -189,7 +198,7 @@ def _resolve_map_paths(data: dict[str, Any], base: Path) -> None:
         return
     for k in _MAP_KEYS:
         v = world.get(k)
-        if isinstance(v, str) and v and not v.startswith("procedural:") and not os.path.isabs(v):
+        if _is_map_path(k, v) and not os.path.isabs(v):
             world[k] = str((base / v).resolve())
 
 

@@ -232,7 +232,9 @@ class World(pydantic.BaseModel):
     reference_elevation_error: DemError, None: none), obstacles (boxes: ObstacleBox), the air mass (wind; None: calm
     air), the crust's magnetic anomaly (None: the magnetometers sense the WMM the vehicles carry, exactly), a cloud layer
     between the cameras and the ground (clouds: Clouds; None: clear sky). Maps are
-    GeoTIFF paths (with ${VAR} expansion) or `procedural:` specs; None means no imagery / flat ground.
+    GeoTIFF paths (with ${VAR} expansion) or `procedural:` specs; None means no imagery / flat ground. The
+    elevation keys also take 'flat' or 'flat:HEIGHT_M' (flat ground that far above the origin's altitude), e.g.
+    reference_elevation: flat for a vehicle that carries no terrain model over relief.
     imagery_credit: the imagery's attribution, printed in the run's report, which shows the imagery (a CC BY
     licence asks for it wherever the data is shown)."""
 

@@ -81,7 +81,7 @@ class RunWorld:
         if self._imagery is None and self.spec.imagery:
             from testbench.world import open_world_imagery
 
-            self._imagery = open_world_imagery(self.spec.imagery, self.origin, self.cache_dir)
+            self._imagery = open_world_imagery(self.spec.imagery, self.origin, self.cache_dir, what="world.imagery")
         return self._imagery
 
     def reference_map(self):
@@ -92,7 +92,8 @@ class RunWorld:
             if spec:
                 from testbench.world import open_world_imagery
 
-                self._reference = open_world_imagery(spec, self.origin, self.cache_dir)
+                what = "world.reference_map" if self.spec.reference_map else "world.imagery (the reference map too)"
+                self._reference = open_world_imagery(spec, self.origin, self.cache_dir, what=what)
                 err = self.spec.reference_map_error
                 if err is not None and (err.sigma_m > 0 or err.shift_ne_m != (0.0, 0.0)):
                     from testbench.world.map_error import DisplacedMap
@@ -165,7 +166,7 @@ class RunWorld:
         if self._elevation is None and self.spec.elevation:
             from testbench.world import open_elevation
 
-            self._elevation = open_elevation(self.spec.elevation, self.origin, self.cache_dir)
+            self._elevation = open_elevation(self.spec.elevation, self.origin, self.cache_dir, what="world.elevation")
         return self._elevation
 
     def reference_elevation(self):
@@ -177,7 +178,9 @@ class RunWorld:
             if spec:
                 from testbench.world import open_elevation
 
-                self._reference_elevation = open_elevation(spec, self.origin, self.cache_dir)
+                what = ("world.reference_elevation" if self.spec.reference_elevation
+                        else "world.elevation (the reference elevation too)")
+                self._reference_elevation = open_elevation(spec, self.origin, self.cache_dir, what=what)
             if err is not None and err.rms_m > 0:
                 from testbench.world.dem_error import ErroredElevation
                 from testbench.world.elevation import FlatElevation

@@ -64,11 +64,11 @@ class ElevationModel:
     """
 
     def __init__(self, path, origin: GeodeticOrigin, *, outside_height_m: float = 0.0,
-                 band: int = 1, max_tiles: int = 64):
-        self._reader = GeoRasterReader(path, origin, [band], what="elevation",
+                 band: int = 1, max_tiles: int = 64, what: str = "elevation"):
+        self._reader = GeoRasterReader(path, origin, [band], what=what,
                                        resampling=Resampling.average)
         if np.dtype(self._reader.ds.dtypes[band - 1]).kind not in "iuf":
-            raise InputError(f"elevation '{self._reader.path}': band {band} is not numeric")
+            raise InputError(f"{what} '{self._reader.path}': band {band} is not numeric")
         self.path = self._reader.path
         self.origin = origin
         self.outside_height_m = float(outside_height_m)

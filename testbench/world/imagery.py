@@ -36,11 +36,12 @@ class MapSource:
     stretched linearly between its 0.5 and 99.5 percentiles (from an overview read).
     """
 
-    def __init__(self, path, origin: GeodeticOrigin):
-        ds_probe = open_georaster(path, "map imagery")
+    def __init__(self, path, origin: GeodeticOrigin, *, what: str = "map imagery"):
+        # `what` names the map in error messages (e.g. the scenario key it came from).
+        ds_probe = open_georaster(path, what)
         bands, rescale = _rgb_bands(ds_probe)
         ds_probe.close()
-        self._reader = GeoRasterReader(path, origin, bands, what="map imagery")
+        self._reader = GeoRasterReader(path, origin, bands, what=what)
         self.path = self._reader.path
         self.origin = origin
         self._grey = len(bands) == 1

@@ -131,32 +131,41 @@ def _resolve(path: str, base_dir) -> str:
     return p
 
 
-def open_world_imagery(spec_or_path, origin: GeodeticOrigin, cache_dir=None, base_dir=None):
-    """MapSource for a GeoTIFF path or a `procedural:` spec (generated and cached)."""
+def open_world_imagery(spec_or_path, origin: GeodeticOrigin, cache_dir=None, base_dir=None,
+                       what: str = "map imagery"):
+    """MapSource for a GeoTIFF path or a `procedural:` spec (generated and cached); `what`
+    names it in error messages (e.g. 'world.reference_map')."""
     from testbench.world.imagery import MapSource
 
     if is_procedural(spec_or_path):
         img, _ = ensure_world(parse_spec(spec_or_path), origin, cache_dir)
-        return MapSource(img, origin)
-    return MapSource(_resolve(os.fspath(spec_or_path), base_dir), origin)
+        return MapSource(img, origin, what=what)
+    return MapSource(_resolve(os.fspath(spec_or_path), base_dir), origin, what=what)
 
 
-def open_elevation(spec_or_path, origin: GeodeticOrigin, cache_dir=None, base_dir=None):
+def open_elevation(spec_or_path, origin: GeodeticOrigin, cache_dir=None, base_dir=None,
+                   what: str = "elevation"):
     """ElevationModel for a DEM path or a `procedural:` spec; FlatElevation for None/'flat'.
 
-    'flat:H' gives flat ground H m above the origin altitude.
+    'flat:H' gives flat ground H m above the origin altitude. `what` names it in error
+    messages (e.g. 'world.reference_elevation').
     """
     from testbench.world.elevation import ElevationModel, FlatElevation
 
     if spec_or_path is None:
         return FlatElevation(0.0)
-    if isinstance(spec_or_path, str) and spec_or_path.strip().lower().startswith("flat"):
+    flat = spec_or_path.strip().lower() if isinstance(spec_or_path, str) else ""
+    if flat == "flat" or flat.startswith("flat:"):  # not a file named flat...
         _, _, hs = spec_or_path.partition(":")
         try:
-            return FlatElevation(float(hs) if hs.strip() else 0.0)
+            height_m = float(hs) if hs.strip() else 0.0
         except ValueError:
-            raise InputError(f"elevation '{spec_or_path}': expected 'flat' or 'flat:HEIGHT_M'") from None
+            height_m = math.nan
+        if not math.isfinite(height_m):
+            raise InputError(f"{what} '{spec_or_path}': expected 'flat' or 'flat:HEIGHT_M' (a finite height in "
+                             "metres above the origin's altitude)")
+        return FlatElevation(height_m)
     if is_procedural(spec_or_path):
         _, dem = ensure_world(parse_spec(spec_or_path), origin, cache_dir)
-        return ElevationModel(dem, origin)
-    return ElevationModel(_resolve(os.fspath(spec_or_path), base_dir), origin)
+        return ElevationModel(dem, origin, what=what)
+    return ElevationModel(_resolve(os.fspath(spec_or_path), base_dir), origin, what=what)

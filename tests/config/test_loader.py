@@ -94,3 +94,17 @@ def test_additive_override_offsets_the_scenario_value():
 def test_additive_override_needs_numbers_on_both_sides(item, message):
     with pytest.raises(InputError, match=message):
         load_scenario(RACETRACK, [item])
+
+
+def test_flat_elevation_is_kept_and_a_dem_named_flat_is_a_path(tmp_path):
+    """'flat' / 'flat:H' on the elevation keys is flat ground, not a file next to the scenario;
+    a DEM whose file name starts with 'flat' is still a path, made absolute."""
+    text = RACETRACK.read_text().replace(
+        "world:\n", "world:\n  elevation: flat:25\n  reference_elevation: Flat\n  reference_map: flat_map.tif\n", 1)
+    p = tmp_path / "s.yaml"
+    p.write_text(text)
+    world = load_scenario(p).scenario.world
+    assert (world.elevation, world.reference_elevation) == ("flat:25", "Flat")
+    assert world.reference_map == str(tmp_path / "flat_map.tif")  # imagery is never flat ground
+    world = load_scenario(p, ["world.elevation=flat_dem.tif"]).scenario.world
+    assert world.elevation == str(tmp_path / "flat_dem.tif")

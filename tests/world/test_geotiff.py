@@ -286,3 +286,28 @@ def test_a_read_on_the_maps_own_grid_copies_what_the_remap_gives_bit_for_bit(tmp
         assert np.array_equal(fast[1], slow[1]), box
         if box in on_grid:
             assert fast[1].any() and (kind != "plain" or box[3:] != (60, 80) or fast[1].all()), box
+
+
+def test_a_run_world_names_the_key_of_a_bad_map(tmp_path, origin):
+    """A scenario's map that cannot be opened is named by its world key, so that a scenario
+    with several maps says which one is wrong."""
+    from testbench.config.schema import World
+    from testbench.sim.world_runtime import RunWorld
+
+    bad = tmp_path / "bad.tif"
+    bad.write_text("not a tiff")
+    good = write_tif(tmp_path / "good.tif", np.zeros((3, 10, 10), np.uint8), "EPSG:4326",
+                     rasterio.Affine(1e-5, 0, 7.0, 0, -1e-5, 45.0))
+    o = {"lat_deg": 45.0, "lon_deg": 7.0, "alt_m": 0.0}
+    cases = [
+        ({"imagery": str(good), "reference_map": str(bad)}, "reference_map", "world.reference_map '"),
+        ({"imagery": str(bad)}, "reference_map", r"world.imagery \(the reference map too\) '"),
+        ({"imagery": str(bad)}, "imagery", "world.imagery '"),
+        ({"elevation": str(bad)}, "elevation", "world.elevation '"),
+        ({"elevation": str(good), "reference_elevation": str(tmp_path / "none.tif")}, "reference_elevation",
+         "world.reference_elevation '.*none.tif': no such file"),
+        ({"elevation": str(bad)}, "reference_elevation", r"world.elevation \(the reference elevation too\) '"),
+    ]
+    for keys, opener, message in cases:
+        with pytest.raises(InputError, match=message):
+            getattr(RunWorld(World(origin=o, **keys), origin), opener)()

@@ -244,3 +244,17 @@ def test_spec_sun_moves_the_shadows_only(tmp_path, origin):
     assert open_elevation(spec.canonical(), origin, cache_dir=tmp_path).height_m(10.0, -20.0) == z0
     with pytest.raises(InputError, match="sun_elevation_deg"):
         parse_spec(base + "&sun_elevation_deg=95")
+
+
+def test_flat_elevation_specs(tmp_path, origin):
+    """'flat' and 'flat:H' are flat ground H m above the origin; anything else after 'flat:'
+    is one clear error naming the key; a file named flat... is a file."""
+    assert open_elevation("flat", origin).height_at(10.0, 20.0) == 0.0
+    assert open_elevation(" FLAT:-12.5 ", origin).height_m([0.0, 5.0], 1.0).tolist() == [-12.5, -12.5]
+    for bad in ("flat:abc", "flat:nan", "flat:inf"):
+        with pytest.raises(InputError, match=rf"world.reference_elevation '{bad}': expected 'flat' or 'flat:HEIGHT_M'"):
+            open_elevation(bad, origin, what="world.reference_elevation")
+    with pytest.raises(InputError, match=r"world.elevation '.*flat_dem.tif': no such file"):
+        open_elevation(str(tmp_path / "flat_dem.tif"), origin, what="world.elevation")
+    with pytest.raises(InputError, match=r"^elevation 'flatdem.tif': no such file"):
+        open_elevation("flatdem.tif", origin)
