@@ -69,6 +69,13 @@ class Vary:
                                  f"choice or sequence of [v1, ..., v{n_keys}] for the {n_keys} keys, every one of them")
         if name in ("uniform", "normal", "linspace") and not all(isinstance(a, (int, float)) for a in args):
             raise InputError(f"--vary {text!r}: {name} takes numbers")
+        if name in ("uniform", "normal", "linspace"):
+            if not all(np.isfinite(args)):
+                raise InputError(f"--vary {text!r}: {name} takes finite numbers")
+            if name == "uniform" and args[0] > args[1]:
+                raise InputError(f"--vary {text!r}: uniform(a, b) needs a <= b (expected the low bound first)")
+            if name == "normal" and args[1] < 0:
+                raise InputError(f"--vary {text!r}: normal(mu, sigma) needs sigma >= 0")
         if offset and not all(isinstance(a, (int, float)) for a in args):
             raise InputError(f"--vary {text!r}: += adds numbers; choose among numbers")
         return cls(key, name, args, offset)

@@ -141,6 +141,19 @@ def test_vary_rejects_tuples_that_do_not_fit_the_keys(text, expected):
         Vary.parse(text)
 
 
+@pytest.mark.parametrize("text, expected", [
+    ("a=uniform(2, 1)", r"uniform\(a, b\) needs a <= b"),
+    ("a=normal(0, -1)", r"sigma >= 0"),
+    ("a=uniform(0, inf)", "finite numbers"),
+    ("a+=linspace(nan, 1)", "finite numbers"),
+])
+def test_vary_rejects_distributions_numpy_cannot_draw(text, expected):
+    """Found as internal errors (numpy's ValueError, a traceback) before any run started."""
+    with pytest.raises(InputError, match=expected):
+        Vary.parse(text)
+    assert Vary.parse("a=uniform(1, 1)").draw(2, np.random.default_rng(0)) == [1.0, 1.0]
+
+
 def test_plan_records_a_tuple_draw_under_each_key():
     plan = BatchPlan(SCENARIO, 2, 4, SHORT, (Vary.parse("world.imagery,world.reference_map=sequence([a.tif, b.tif], [c.tif, d.tif])"),))
     specs = plan.run_specs()
