@@ -1,7 +1,7 @@
 """`testbench compare BASE NEW`: two runs or two Monte Carlo batches, metric by metric.
 
-Exit 0 when nothing got worse, 3 when a figure got worse or went missing (as a failed
-threshold), 2 for bad input. The statistics live in testbench.scoring.compare.
+Exit 0 when nothing got worse, 3 when a figure got worse or went missing, or the new run
+aborted where the base completed (as a failed threshold), 2 for bad input. The statistics live in testbench.scoring.compare.
 """
 
 from __future__ import annotations
@@ -72,9 +72,12 @@ def run(args: argparse.Namespace) -> int:
     names = (_scenario_name(metas[0], kinds[0]), _scenario_name(metas[1], kinds[0]))
     if names[0] != names[1]:
         print(f"note: different scenarios ({names[0]} / {names[1]}): the figures may not be comparable", file=sys.stderr)
+    status = None
     if kinds[0] == "run":
         _note_numerics(metas[0].get("environment"), metas[1].get("environment"))
-        changes = cmp.compare_runs(_flat_metrics(base), _flat_metrics(new), args.rel_tol, args.only, ignore)
+        flats = (_flat_metrics(base), _flat_metrics(new))
+        status = cmp.compare_status(flats[0].get("status"), flats[1].get("status"))
+        changes = cmp.compare_runs(*flats, args.rel_tol, args.only, ignore)
         head = f"runs: {base} -> {new} (a change counts above {args.rel_tol:.0%} of the base value)"
     else:
         import pandas as pd
@@ -87,13 +90,19 @@ def run(args: argparse.Namespace) -> int:
                 f"and above {args.rel_tol:.0%} of the base mean)")
     if not changes:
         raise InputError(f"no metric in common to compare (--only {args.only or '-'}, --ignore {ignore or '-'})")
-    bad = cmp.failed(changes, timing_counts=args.timing)
+    bad = cmp.failed(changes, timing_counts=args.timing) or (status is not None and status.verdict == "worse")
     print(head)
+    if status is not None and status.verdict != "same":
+        aborted = [f"{which}: {m['abort_reason']}" for which, m in zip(("base", "new"), metas)
+                   if m.get("status") == "aborted" and m.get("abort_reason")]
+        print(f"status: {status.base} -> {status.new}  {status.verdict}" + "".join(f"\n  {a}" for a in aborted)
+              + ("\n  (an aborted run's figures cover only the time before its abort)" if aborted else ""))
     _print_table([c for c in cmp.sort_changes(changes) if args.all or c.verdict != "same"])
     counts = {v: sum(1 for c in changes if c.verdict == v) for v in cmp.ORDER}
     print(", ".join(f"{n} {v}" for v, n in counts.items() if n) + f" (of {len(changes)})")
     if args.json:
-        Path(args.json).write_text(json.dumps([c.to_dict() for c in changes], indent=1, allow_nan=False) + "\n", encoding="utf-8")
+        rows = ([status.to_dict()] if status is not None else []) + [c.to_dict() for c in changes]
+        Path(args.json).write_text(json.dumps(rows, indent=1, allow_nan=False) + "\n", encoding="utf-8")
     return EXIT_THRESHOLD_FAILED if bad else 0
 
 
@@ -129,7 +138,14 @@ def _batch_figures(folder: Path) -> dict:
     except (OSError, ValueError):
         return {}
     sections = {k: summary[k] for k in ("nees_position", "threshold_pass_rate") if isinstance(summary.get(k), dict)}
-    return flatten(sections, "batch.")
+    figures = flatten(sections, "batch.")
+    counts = summary.get("status_counts")
+    if isinstance(counts, dict) and sum(counts.values()):
+        # The share of runs that flew to their end (passed or failed a threshold): the per-run
+        # figures and the pass rate are of those runs only, so an aborted run shows only here.
+        finished = counts.get("passed", 0) + counts.get("threshold_failed", 0)
+        figures["batch.finished_rate"] = finished / sum(counts.values())
+    return figures
 
 
 def _print_table(changes) -> None:

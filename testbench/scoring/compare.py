@@ -47,6 +47,7 @@ DIRECTION_RULES: tuple[tuple[str, int], ...] = (
     ("false_fixes", -1), ("first_fix_s", -1),
     ("error", -1), ("latency", -1), ("miss", -1), ("overshoot", -1), ("wall_time", -1), ("_us", -1),
     ("fix_rate", +1), ("correct_rate", +1), ("accept_rate", +1), ("pass_rate", +1), ("fraction_within", +1),
+    ("finished_rate", +1),
     ("recall", +1), ("precision", +1), ("real_time_factor", +1),
 )
 NEUTRAL_LEAVES = {"n", "count", "dof"}
@@ -91,6 +92,35 @@ class MetricChange:
     def to_dict(self) -> dict:
         """Plain dict, nan as None (strict JSON)."""
         return {k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in asdict(self).items()}
+
+
+# How a run ended (metrics.json `status`: "completed" or "aborted"), best first. An aborted run
+# (crash, NaN, divergence) did not fly to its end, and its figures cover only the time before
+# the abort: they may even look better than the base's.
+STATUS_RANK = {"completed": 0, "aborted": 1}
+
+
+@dataclass(frozen=True)
+class StatusChange:
+    """How two runs ended: base / new status ("completed", "aborted"; None when a metrics.json
+    gives none) and the verdict: "better" / "worse" by STATUS_RANK, "same", or "changed" (a
+    status outside it)."""
+
+    base: str | None
+    new: str | None
+    verdict: str
+
+    def to_dict(self) -> dict:
+        return {"key": "status", **asdict(self)}
+
+
+def compare_status(base: str | None, new: str | None) -> StatusChange:
+    """The verdict on two runs' statuses (StatusChange)."""
+    if base == new:
+        return StatusChange(base, new, "same")
+    if base in STATUS_RANK and new in STATUS_RANK:
+        return StatusChange(base, new, "worse" if STATUS_RANK[new] > STATUS_RANK[base] else "better")
+    return StatusChange(base, new, "changed")
 
 
 def _verdict(key: str, delta: float, counts: bool) -> str:

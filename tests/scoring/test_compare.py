@@ -109,11 +109,50 @@ def test_failed_runs_are_left_out_of_a_batch():
     assert {x.key: x for x in changes}["nav.horizontal_error_m.mean"].n == 5
 
 
-def _run_folder(path, metrics, scenario="paper_ismn_800m"):
+def _run_folder(path, metrics, scenario="paper_ismn_800m", **run_info):
     path.mkdir()
     (path / "metrics.json").write_text(json.dumps(metrics))
-    (path / "run.json").write_text(json.dumps({"scenario_name": scenario}))
+    (path / "run.json").write_text(json.dumps({"scenario_name": scenario, **run_info}))
     return path
+
+
+def test_an_aborted_run_is_worse_whatever_its_figures(tmp_path, capsys):
+    """A run that aborted early has figures of its first seconds only, which can look better
+    than the whole run's: its status makes the comparison fail, and says why it aborted."""
+    done = _run_folder(tmp_path / "done", {"status": "completed", "nav": {"horizontal_error_m": {"mean": 1.0}}},
+                       status="completed")
+    reason = "vehicle uav0, t=12.5 s: navigation diverged"
+    crashed = _run_folder(tmp_path / "crashed", {"status": "aborted", "nav": {"horizontal_error_m": {"mean": 0.2}}},
+                          status="aborted", abort_reason=reason)
+    out_json = tmp_path / "cmp.json"
+    assert main(["compare", str(done), str(crashed), "--json", str(out_json)]) == 3
+    out = capsys.readouterr().out
+    assert "status: completed -> aborted  worse" in out and f"new: {reason}" in out
+    rows = {r["key"]: r for r in json.loads(out_json.read_text())}
+    assert rows["status"] == {"key": "status", "base": "completed", "new": "aborted", "verdict": "worse"}
+    assert rows["nav.horizontal_error_m.mean"]["verdict"] == "better"
+    assert main(["compare", str(crashed), str(done)]) == 3  # the error grew 5x, but the run now flies to its end
+    assert "status: aborted -> completed  better" in capsys.readouterr().out
+    assert main(["compare", str(done), str(done)]) == 0
+    assert "status:" not in capsys.readouterr().out
+
+
+def test_a_batch_with_more_aborted_runs_is_worse(tmp_path, capsys):
+    """The per-run figures and the pass rate are of the finished runs only: the share of runs
+    that finished is what shows the aborted ones."""
+    for name, counts in (("base", {"passed": 12}), ("new", {"passed": 10, "aborted": 2})):
+        (tmp_path / name).mkdir()
+        runs = _batch(np.ones(12))
+        runs.loc[12 - counts.get("aborted", 0):, "status"] = "aborted"
+        runs.to_parquet(tmp_path / name / "runs.parquet")
+        (tmp_path / name / "summary.json").write_text(json.dumps(
+            {"status_counts": counts, "threshold_pass_rate": {"value": 1.0, "n": counts["passed"]}, "metrics": {}}))
+    out_json = tmp_path / "cmp.json"
+    assert main(["compare", str(tmp_path / "base"), str(tmp_path / "new"), "--json", str(out_json)]) == 3
+    rows = {r["key"]: r for r in json.loads(out_json.read_text())}
+    assert rows["batch.finished_rate"]["base"] == 1.0 and rows["batch.finished_rate"]["new"] == pytest.approx(10 / 12)
+    assert rows["batch.finished_rate"]["verdict"] == "worse"
+    assert rows["batch.threshold_pass_rate.value"]["verdict"] == "same"
 
 
 def test_compare_command_on_runs(tmp_path, capsys):
