@@ -53,8 +53,9 @@ def run_batch(
     """Run (or resume) the batch into out_dir; returns when every run has a result."""
     out = Path(out_dir)
     runs_dir = out / "runs"
-    runs_dir.mkdir(parents=True, exist_ok=True)
-    _check_identity(out / "batch.json", plan)
+    out.mkdir(parents=True, exist_ok=True)
+    _check_identity(out / "batch.json", plan)  # before anything is written: another batch's folder stays as it was
+    runs_dir.mkdir(exist_ok=True)
     specs = plan.run_specs()
     rows: dict[int, dict[str, Any]] = {}
     for s in specs:
@@ -121,6 +122,8 @@ def _nees_summary(runs_dir: Path, rows: list[dict[str, Any]], series_path: Path)
 
 def _check_identity(path: Path, plan: BatchPlan) -> None:
     ident = plan.identity()
+    if not path.is_file() and (path.parent / "run.json").is_file():
+        raise InputError(f"{path.parent}: holds a run of `testbench run` (run.json); use a new --out folder for the batch")
     if path.is_file():
         old = json.loads(path.read_text(encoding="utf-8"))
         if old != ident:

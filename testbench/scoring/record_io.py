@@ -29,6 +29,26 @@ from testbench.core.errors import InputError
 
 log = logging.getLogger(__name__)
 
+#: What `testbench run` writes into a run directory (globs relative to DIR). A run removes them
+#: before it writes its own, so that no file of an earlier run into the same directory (a
+#: vehicle's trajectory, an event table, an ISMN example that run had and this one has not)
+#: is read as this run's.
+RUN_OUTPUT_GLOBS = ("metrics.json", "run.json", "report.html", "report.pdf", "map_preview.png", "scenario.yaml",
+                    "telemetry.parquet", "events/*.parquet", "trajectories/*.tum", "ismn_examples/*.npz",
+                    "frames/*.png")
+
+
+def remove_run_outputs(run_dir: str | Path) -> int:
+    """Delete the files of RUN_OUTPUT_GLOBS in run_dir (nothing else); returns how many."""
+    removed = 0
+    for pattern in RUN_OUTPUT_GLOBS:
+        for path in Path(run_dir).glob(pattern):
+            if path.is_file():
+                path.unlink()
+                removed += 1
+    return removed
+
+
 #: Columns without which no metric can be computed.
 REQUIRED_TELEMETRY_COLUMNS = (
     "vehicle_id",

@@ -23,6 +23,7 @@ from testbench.core.errors import (
     EXIT_OK,
     EXIT_RUN_ABORTED,
     EXIT_THRESHOLD_FAILED,
+    InputError,
     SimulationAborted,
 )
 from testbench.core.interfaces import GeodeticOrigin
@@ -124,9 +125,13 @@ def run_scenario(
     # leaves no folder behind.
     engine, world, recorder = build_engine(loaded, seed=seed, realtime=realtime, on_progress=on_progress,
                                            frame_sink=frame_sink, processes=processes)
+    if (out / "batch.json").is_file():
+        raise InputError(f"--out {out}: holds a Monte Carlo batch (batch.json); expected a run folder or a new one")
     out.mkdir(parents=True, exist_ok=True)
-    for stale in ("metrics.json", "run.json", "report.html", "report.pdf", "map_preview.png"):
-        (out / stale).unlink(missing_ok=True)  # never leave a previous run's verdict behind
+    from testbench.scoring.record_io import remove_run_outputs
+
+    # Never leave a previous run's verdict, vehicles, events or images behind.
+    remove_run_outputs(out)
     result = engine.run()
     if result.aborted is not None and not isinstance(result.aborted, SimulationAborted):
         raise result.aborted  # a bug or a user error surfaced mid-run: not a flight outcome
