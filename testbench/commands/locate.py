@@ -9,6 +9,8 @@ k3]; mount_roll_deg, mount_pitch_deg (default -90: nadir), mount_yaw_deg; lever_
 The ground is taken flat at the prior's (or map centre's) altitude, H metres below the camera.
 Without a prior the whole map is searched at a coarse resolution first, then refined.
 Prints one JSON object: lat_deg, lon_deg, sigma_h_m, quality, time_ms (and the NED fix).
+Exit 0 found; 3 not found (the JSON says found: false and why, and so does one line on stderr);
+2 bad input (a prior circle that misses the map among them).
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from testbench.core.errors import InputError
+from testbench.core.errors import EXIT_THRESHOLD_FAILED, InputError
 
 
 def register(subparsers) -> None:
@@ -115,6 +117,8 @@ def _locate(args) -> int:
     else:
         lat, lon = map_centre_lat_lon_deg(args.map, "--map")
         radius = None
+    if radius is not None:
+        _check_prior_on_map(args.map, lat, lon, radius)
     origin = GeodeticOrigin(math.radians(lat), math.radians(lon), 0.0)
     rpy = np.radians([roll, pitch, yaw])
     matcher = build("matcher", args.matcher, None, where="--matcher", ctx=None)
@@ -135,15 +139,14 @@ def _locate(args) -> int:
                                 keep_images=False)
             fix, diag = IsmnPipeline(cam, mount, ref, None, matcher, coarse).process(img, 0.0, estimate(pos_ne, half / 3))
             if fix is None:
-                raise InputError(f"--image {args.image}: not found on the map ({diag.reason}); give --prior-lat-lon")
+                return _not_found(args, f"not found on the whole map ({diag.reason}); give --prior-lat-lon", t0)
             pos_ne = fix.pos_ned_m[:2]
             radius = max(30.0, 3.0 * math.sqrt(max(fix.cov_ned_m2[0, 0], fix.cov_ned_m2[1, 1])))
         fine = IsmnParams(gsd_m=native, keep_images=False, margin_m=10.0)
         fix, diag = IsmnPipeline(cam, mount, ref, None, matcher, fine).process(img, 0.0, estimate(pos_ne, radius / 3.0))
     elapsed_ms = 1e3 * (time.perf_counter() - t0)
     if fix is None:
-        print(json.dumps({"found": False, "reason": diag.reason, "time_ms": round(elapsed_ms, 1)}))
-        return 1
+        return _not_found(args, diag.reason, t0)
     lat_r, lon_r, _ = ned_to_geodetic(fix.pos_ned_m, origin.lat_rad, origin.lon_rad, origin.alt_m)
     sigma_h = math.sqrt(float(np.linalg.eigvalsh(fix.cov_ned_m2[:2, :2]).max()))
     print(json.dumps({
@@ -153,3 +156,34 @@ def _locate(args) -> int:
         "match_ms": {k: round(v, 1) for k, v in diag.latency_ms.items()},
     }))
     return 0
+
+
+def _not_found(args, reason: str, t0: float) -> int:
+    """found: false on stdout (the one JSON object) and on stderr; exit 3."""
+    import sys
+
+    print(json.dumps({"found": False, "reason": reason, "time_ms": round(1e3 * (time.perf_counter() - t0), 1)}))
+    print(f"testbench locate: --image {args.image}: {reason}", file=sys.stderr)
+    return EXIT_THRESHOLD_FAILED
+
+
+def _check_prior_on_map(map_path: str, lat_deg: float, lon_deg: float, radius_m: float) -> None:
+    """InputError when the prior circle (radius_m about LAT, LON) does not reach the map."""
+    from testbench.core.geodesy import geodetic_to_ned
+    from testbench.core.interfaces import GeodeticOrigin
+    from testbench.world.geotiff import map_centre_lat_lon_deg
+    from testbench.world.imagery import MapSource
+
+    if not (-90.0 <= lat_deg <= 90.0 and -180.0 <= lon_deg <= 360.0):
+        raise InputError(f"--prior-lat-lon {lat_deg},{lon_deg}: expected a latitude in [-90, 90] and a longitude "
+                         "in degrees")
+    c_lat, c_lon = map_centre_lat_lon_deg(map_path, "--map")
+    centre = GeodeticOrigin(math.radians(c_lat), math.radians(c_lon), 0.0)
+    n, e, _ = geodetic_to_ned(math.radians(lat_deg), math.radians(lon_deg), 0.0, centre.lat_rad, centre.lon_rad, 0.0)
+    with MapSource(map_path, centre, what="--map") as ref:
+        fp = ref.footprint
+    # Distance from the prior to the map's bounding box in the map centre's local frame.
+    gap_m = math.hypot(max(fp.north_min_m - n, 0.0, n - fp.north_max_m), max(fp.east_min_m - e, 0.0, e - fp.east_max_m))
+    if gap_m > radius_m:
+        raise InputError(f"--prior-lat-lon {lat_deg},{lon_deg}: {gap_m / 1e3:.1f} km off the map, beyond "
+                         f"--prior-radius-m {radius_m:g} (the map's centre is at {c_lat:.5f},{c_lon:.5f})")

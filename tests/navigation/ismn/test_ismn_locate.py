@@ -46,6 +46,47 @@ def test_bad_camera_key_is_input_error(tmp_path):
         locate.load_camera(str(tmp_path / "c.yaml"))
 
 
+def _blank_map_and_photo(tmp_path):
+    """A georeferenced 2 x 2 km map of one grey (no feature to match) at 47 N, 99 W, and a
+    grey photo of the camera's size."""
+    import rasterio
+    from rasterio.transform import from_origin
+
+    path = tmp_path / "map.tif"
+    with rasterio.open(path, "w", driver="GTiff", width=400, height=400, count=3, dtype="uint8",
+                       crs="EPSG:32614", transform=from_origin(500000.0, 5206000.0, 5.0, 5.0)) as ds:
+        ds.write(np.full((3, 400, 400), 128, np.uint8))
+    cv2.imwrite(str(tmp_path / "photo.png"), np.full((360, 640, 3), 128, np.uint8))
+    return ["--map", str(path), "--image", str(tmp_path / "photo.png"), "--camera", str(_write_camera(tmp_path)),
+            "--altitude-agl-m", "800", "--attitude-deg", "0,0,0"]
+
+
+def test_a_prior_off_the_map_is_input_error(tmp_path):
+    argv = _blank_map_and_photo(tmp_path)
+    lat, lon = map_centre_lat_lon_deg(tmp_path / "map.tif")
+    for prior, radius, message in ((f"{lat + 0.1},{lon}", "300", r"km off the map, beyond --prior-radius-m 300"),
+                                   ("95,0", "300", "expected a latitude in"),
+                                   (f"{lat},{lon}", "-5", "expected a positive radius")):
+        args = _parse(argv + ["--prior-lat-lon", prior, "--prior-radius-m", radius])
+        with pytest.raises(InputError, match=message):
+            args.handler(args)
+    # 11 km north of the map's centre: 10 km off its edge, within a 12 km radius.
+    args = _parse(argv + ["--prior-lat-lon", f"{lat + 0.1},{lon}", "--prior-radius-m", "12000"])
+    assert args.handler(args) == 3
+
+
+def test_a_photo_not_found_is_exit_3_with_the_reason(tmp_path, capsys):
+    """Not found is an outcome, not a bug (exit 1) nor bad input: found false on stdout and why."""
+    argv = _blank_map_and_photo(tmp_path)
+    lat, lon = map_centre_lat_lon_deg(tmp_path / "map.tif")
+    for extra in ([], ["--prior-lat-lon", f"{lat},{lon}", "--prior-radius-m", "200"]):
+        args = _parse(argv + extra)
+        assert args.handler(args) == 3
+        captured = capsys.readouterr()
+        out = json.loads(captured.out)
+        assert out["found"] is False and "quality" in out["reason"] and out["reason"] in captured.err
+
+
 @pytest.mark.realdata
 @pytest.mark.parametrize("with_prior", [True, False])
 def test_locate_naip_photo(realdata, tmp_path, capsys, with_prior):
